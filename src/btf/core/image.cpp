@@ -1,0 +1,128 @@
+#include "btf/core/image.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+
+#include "btf/core/color.h"
+#include "btf/util/atomic_file.h"
+#include "btf/util/error.h"
+
+namespace btf {
+
+Image::Image(int width, int height, int channels, float fill)
+    : m_width(width), m_height(height), m_channels(channels) {
+    m_data.assign(size_t(width) * height * channels, fill);
+}
+
+void Image::reshape(int width, int height, int channels) {
+    m_width = width, m_height = height, m_channels = channels;
+    m_data.resize(size_t(width) * height * channels);
+}
+
+Rgb Image::bilinear(double x, double y) const {
+    const double fx = std::clamp(x - 0.5, 0.0, double(m_width - 1));
+    const double fy = std::clamp(y - 0.5, 0.0, double(m_height - 1));
+    const int x0 = std::min(int(fx), m_width - 1), y0 = std::min(int(fy), m_height - 1);
+    const int x1 = std::min(x0 + 1, m_width - 1), y1 = std::min(y0 + 1, m_height - 1);
+    const float tx = float(fx - x0), ty = float(fy - y0);
+    return rgb(x0, y0) * ((1 - tx) * (1 - ty)) + rgb(x1, y0) * (tx * (1 - ty)) +
+           rgb(x0, y1) * ((1 - tx) * ty) + rgb(x1, y1) * (tx * ty);
+}
+
+namespace {
+
+Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encoding) {
+    const OIIO::ImageSpec& spec = input.spec();
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+        fail("{}: image has no pixels", name);
+    if (int64_t(spec.width) * spec.height > (int64_t(1) << 30))
+        fail("{}: image of {}x{} pixels is too large", name, spec.width, spec.height);
+    const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT ||
+                          spec.format.basetype == OIIO::TypeDesc::HALF ||
+                          spec.format.basetype == OIIO::TypeDesc::DOUBLE;
+    std::vector<float> pixels(size_t(spec.width) * spec.height * spec.nchannels);
+    if (!input.read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels.data())) {
+        std::string err = input.geterror();
+        fail("{}: cannot decode image: {}", name, err.empty() ? "unknown error" : err);
+    }
+    Image image(spec.width, spec.height, 3);
+    const int nc = spec.nchannels;
+    const bool decode_srgb = !is_float && encoding == Encoding::kLinear;
+    for (int64_t p = 0; p < image.num_pixels(); ++p) {
+        for (int c = 0; c < 3; ++c) {
+            float v = pixels[p * nc + std::min(c, nc < 3 ? 0 : c)];
+            if (decode_srgb) v = srgb_to_linear(v);
+            image.data()[p * 3 + c] = v;
+        }
+    }
+    return image;
+}
+
+}  // namespace
+
+Image read_image(const std::filesystem::path& path, Encoding encoding) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) fail("{}: no such image file", path.string());
+    auto input = OIIO::ImageInput::open(path.string());
+    if (!input) {
+        std::string err = OIIO::geterror();
+        fail("{}: cannot read image: {}", path.string(), err.empty() ? "unknown format" : err);
+    }
+    return read_from(*input, path.string(), encoding);
+}
+
+Image read_image_memory(const void* data, size_t size, const std::string& name,
+                        Encoding encoding) {
+    OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
+    OIIO::ImageSpec config;
+    void* proxy = &reader;
+    config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+    auto input = OIIO::ImageInput::open(name, &config);
+    if (!input) {
+        std::string err = OIIO::geterror();
+        fail("{}: cannot read image: {}", name, err.empty() ? "unknown format" : err);
+    }
+    return read_from(*input, name, encoding);
+}
+
+void write_image(const std::filesystem::path& path, const Image& image, Encoding encoding) {
+    if (image.empty()) fail("{}: refusing to write an empty image", path.string());
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+    const bool is_float = ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" ||
+                          ext == ".pfm";
+    AtomicOutput out(path);
+    // OpenImageIO picks the format from the file name; keep the real extension on the temp file.
+    std::filesystem::path temp = out.temp_path();
+    temp += ext;
+    auto output = OIIO::ImageOutput::create(path.string());
+    if (!output) fail("{}: unsupported image format '{}'", path.string(), ext);
+    OIIO::ImageSpec spec(image.width(), image.height(), image.channels(),
+                         is_float ? (ext == ".exr" ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT)
+                                  : OIIO::TypeDesc::UINT8);
+    if (ext == ".jpg" || ext == ".jpeg") spec.attribute("Compression", "jpeg:95");
+    std::vector<float> pixels = image.values();
+    if (!is_float) {
+        for (float& v : pixels) {
+            v = std::clamp(v, 0.0f, 1.0f);
+            if (encoding == Encoding::kLinear) v = linear_to_srgb(v);
+        }
+        spec.attribute("oiio:ColorSpace", "sRGB");
+    } else {
+        spec.attribute("oiio:ColorSpace", "Linear");
+    }
+    if (!output->open(temp.string(), spec) ||
+        !output->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) || !output->close()) {
+        std::error_code ec;
+        std::filesystem::remove(temp, ec);
+        fail("{}: cannot write image: {}", path.string(), output->geterror());
+    }
+    std::error_code ec;
+    std::filesystem::rename(temp, out.temp_path(), ec);
+    if (ec) fail("{}: cannot write image: {}", path.string(), ec.message());
+    out.commit();
+}
+
+}  // namespace btf

@@ -1,0 +1,54 @@
+#include "btf/util/atomic_file.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <system_error>
+
+#include "btf/util/error.h"
+
+namespace btf {
+
+namespace fs = std::filesystem;
+
+AtomicOutput::AtomicOutput(fs::path destination, bool directory)
+    : m_destination(std::move(destination)), m_directory(directory) {
+    static std::atomic<unsigned> counter{0};
+    fs::path parent = m_destination.parent_path();
+    if (parent.empty()) parent = ".";
+    std::error_code ec;
+    if (!fs::is_directory(parent, ec))
+        fail("{}: cannot write: folder {} does not exist", m_destination.string(),
+             parent.string());
+    if (fs::is_directory(m_destination, ec))
+        fail("{}: cannot write: a folder of that name exists (remove it first)",
+             m_destination.string());
+    if (directory && fs::exists(m_destination, ec))
+        fail("{}: cannot write a folder: a file of that name exists", m_destination.string());
+    m_temp = parent / fmt::format(".{}.tmp-{}-{}", m_destination.filename().string(), ::getpid(),
+                                  counter.fetch_add(1));
+    if (directory) {
+        if (!fs::create_directory(m_temp, ec))
+            fail("{}: cannot create temporary folder: {}", m_temp.string(), ec.message());
+    }
+}
+
+AtomicOutput::~AtomicOutput() {
+    if (m_committed) return;
+    std::error_code ec;
+    fs::remove_all(m_temp, ec);
+}
+
+void AtomicOutput::commit() {
+    std::error_code ec;
+    if (!fs::exists(m_temp, ec))
+        fail("{}: nothing was written (temporary {} is missing)", m_destination.string(),
+             m_temp.string());
+    if (m_directory && fs::exists(m_destination, ec))
+        fail("{}: cannot write a folder: it exists already", m_destination.string());
+    fs::rename(m_temp, m_destination, ec);
+    if (ec) fail("{}: cannot move output into place: {}", m_destination.string(), ec.message());
+    m_committed = true;
+}
+
+}  // namespace btf
