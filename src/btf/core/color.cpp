@@ -42,7 +42,9 @@ namespace {
 constexpr double kLabEpsilon = 216.0 / 24389.0;  // (6/29)^3
 constexpr double kLabKappa = 24389.0 / 27.0;     // (29/3)^3
 
-double lab_f(double t) { return t > kLabEpsilon ? std::cbrt(t) : (kLabKappa * t + 16.0) / 116.0; }
+double lab_f(double t) {
+    return t > kLabEpsilon ? std::cbrt(t) : (kLabKappa * t + 16.0) / 116.0;
+}
 double lab_f_inv(double f) {
     const double f3 = f * f * f;
     return f3 > kLabEpsilon ? f3 : (116.0 * f - 16.0) / kLabKappa;

@@ -30,8 +30,12 @@ Rgb xyz_to_rgb(const Xyz& xyz);
 // ---- CIE XYZ ⇄ CIELab (CIE 1976), relative to a white point ----
 Lab xyz_to_lab(const Xyz& xyz, const Xyz& white = kWhiteD65);
 Xyz lab_to_xyz(const Lab& lab, const Xyz& white = kWhiteD65);
-inline Lab rgb_to_lab(const Rgb& rgb) { return xyz_to_lab(rgb_to_xyz(rgb)); }
-inline Rgb lab_to_rgb(const Lab& lab) { return xyz_to_rgb(lab_to_xyz(lab)); }
+inline Lab rgb_to_lab(const Rgb& rgb) {
+    return xyz_to_lab(rgb_to_xyz(rgb));
+}
+inline Rgb lab_to_rgb(const Lab& lab) {
+    return xyz_to_rgb(lab_to_xyz(lab));
+}
 
 // ---- YCbCr (ITU-R BT.601, full range, on values in [0, 1]: Cb, Cr centred at 0) ----
 struct YCbCr {
@@ -42,14 +46,18 @@ Rgb ycbcr_to_rgb(const YCbCr& ycc);
 
 // ---- LogLuv (Larson 1998): log2 luminance + CIE 1976 u'v' chromaticity, for HDR data ----
 struct LogLuv {
-    double log_y = 0;  ///< log2(Y)
+    double log_y = 0;     ///< log2(Y)
     double u = 0, v = 0;  ///< CIE 1976 u', v'
 };
 /// Luminance must be > 0; zero luminance maps to log2 of 1e-10 with the white point's u'v'.
 LogLuv xyz_to_logluv(const Xyz& xyz);
 Xyz logluv_to_xyz(const LogLuv& luv);
-inline LogLuv rgb_to_logluv(const Rgb& rgb) { return xyz_to_logluv(rgb_to_xyz(rgb)); }
-inline Rgb logluv_to_rgb(const LogLuv& luv) { return xyz_to_rgb(logluv_to_xyz(luv)); }
+inline LogLuv rgb_to_logluv(const Rgb& rgb) {
+    return xyz_to_logluv(rgb_to_xyz(rgb));
+}
+inline Rgb logluv_to_rgb(const LogLuv& luv) {
+    return xyz_to_rgb(logluv_to_xyz(luv));
+}
 
 // ---- the colour models of Bonn UBO2014 .btf files (FORMATS.md §7) ----
 /// YUV with the matrices used by Bonn's btflib (analog BT.601 YUV).
@@ -61,6 +69,8 @@ std::array<float, 3> rgb_to_ubo_model11(const Rgb& rgb);
 Rgb ubo_model11_to_rgb(const std::array<float, 3>& c);
 
 /// Relative luminance Y of linear RGB (Rec. 709 weights).
-inline float luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
+inline float luminance(const Rgb& c) {
+    return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b;
+}
 
 }  // namespace btf

@@ -50,8 +50,8 @@ DirectionSet make_rings(std::string name, const std::vector<double>& thetas,
 }  // namespace
 
 const DirectionSet& DirectionSet::ubo81() {
-    static const DirectionSet set = make_rings("ubo81", {0, 15, 30, 45, 60, 75},
-                                               {1, 6, 12, 18, 20, 24}, {0, 0, 0, 0, 0, 0});
+    static const DirectionSet set =
+        make_rings("ubo81", {0, 15, 30, 45, 60, 75}, {1, 6, 12, 18, 20, 24}, {0, 0, 0, 0, 0, 0});
     return set;
 }
 
@@ -87,8 +87,7 @@ DirectionSet DirectionSet::read(const std::filesystem::path& path) {
         parse(a, theta);
         parse(b, phi);
         if (theta < 0 || theta > 90)
-            fail("{}: line {}: theta {} is outside [0, 90] degrees", path.string(), line_no,
-                 theta);
+            fail("{}: line {}: theta {} is outside [0, 90] degrees", path.string(), line_no, theta);
         dirs.push_back(Direction::from_degrees(theta, phi));
     }
     if (dirs.empty()) fail("{}: no directions in file", path.string());

@@ -31,7 +31,7 @@ struct Direction {
 /// An ordered set of sample directions on the hemisphere (the light set or the view set of a BTF).
 /// Indices into the set are what readers, codecs and the interpolator exchange.
 class DirectionSet {
-public:
+  public:
     DirectionSet() = default;
     DirectionSet(std::string name, std::vector<Direction> directions);
 
@@ -66,7 +66,7 @@ public:
     /// True if both sets hold the same directions in the same order (within 1e-4 rad).
     bool same_directions(const DirectionSet& other) const;
 
-private:
+  private:
     std::string m_name;
     std::vector<Direction> m_directions;
     std::vector<Vec3> m_vectors;

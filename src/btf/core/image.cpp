@@ -73,8 +73,7 @@ Image read_image(const std::filesystem::path& path, Encoding encoding) {
     return read_from(*input, path.string(), encoding);
 }
 
-Image read_image_memory(const void* data, size_t size, const std::string& name,
-                        Encoding encoding) {
+Image read_image_memory(const void* data, size_t size, const std::string& name, Encoding encoding) {
     OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
     OIIO::ImageSpec config;
     void* proxy = &reader;
@@ -91,8 +90,8 @@ void write_image(const std::filesystem::path& path, const Image& image, Encoding
     if (image.empty()) fail("{}: refusing to write an empty image", path.string());
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    const bool is_float = ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" ||
-                          ext == ".pfm";
+    const bool is_float =
+        ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
     AtomicOutput out(path);
     // OpenImageIO picks the format from the file name; keep the real extension on the temp file.
     std::filesystem::path temp = out.temp_path();

@@ -11,7 +11,7 @@
 namespace btf {
 
 class Image {
-public:
+  public:
     Image() = default;
     Image(int width, int height, int channels = 3, float fill = 0.0f);
 
@@ -45,7 +45,7 @@ public:
     /// Resizes (contents undefined) only if the shape changes.
     void reshape(int width, int height, int channels);
 
-private:
+  private:
     int m_width = 0, m_height = 0, m_channels = 0;
     std::vector<float> m_data;
 };

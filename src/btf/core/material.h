@@ -16,7 +16,7 @@ struct Uv {
 };
 
 class Material {
-public:
+  public:
     virtual ~Material() = default;
 
     /// Spatial resolution of the material's textures.

@@ -9,8 +9,12 @@ namespace btf {
 
 constexpr double kPi = std::numbers::pi;
 
-constexpr double radians(double degrees) { return degrees * (kPi / 180.0); }
-constexpr double degrees(double radians) { return radians * (180.0 / kPi); }
+constexpr double radians(double degrees) {
+    return degrees * (kPi / 180.0);
+}
+constexpr double degrees(double radians) {
+    return radians * (180.0 / kPi);
+}
 
 struct Vec3 {
     double x = 0, y = 0, z = 0;
@@ -25,15 +29,25 @@ struct Vec3 {
     constexpr double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
 };
 
-constexpr Vec3 operator*(double s, const Vec3& v) { return v * s; }
-constexpr double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3 operator*(double s, const Vec3& v) {
+    return v * s;
+}
+constexpr double dot(const Vec3& a, const Vec3& b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline double length(const Vec3& v) { return std::sqrt(dot(v, v)); }
-inline Vec3 normalize(const Vec3& v) { return v / length(v); }
+inline double length(const Vec3& v) {
+    return std::sqrt(dot(v, v));
+}
+inline Vec3 normalize(const Vec3& v) {
+    return v / length(v);
+}
 /// det[a b c] = a · (b × c)
-constexpr double triple(const Vec3& a, const Vec3& b, const Vec3& c) { return dot(a, cross(b, c)); }
+constexpr double triple(const Vec3& a, const Vec3& b, const Vec3& c) {
+    return dot(a, cross(b, c));
+}
 
 /// Linear RGB triple (float, as stored in images).
 struct Rgb {

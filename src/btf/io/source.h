@@ -15,14 +15,14 @@ namespace btf {
 
 /// What a source's values are.
 struct SourceInfo {
-    std::string format;       ///< e.g. "UBO2003", "UBO2014 DFMF", "btfkit HDF5", "synthetic"
+    std::string format;          ///< e.g. "UBO2003", "UBO2014 DFMF", "btfkit HDF5", "synthetic"
     std::filesystem::path path;  ///< file or folder it was read from; empty for synthetic data
-    bool hdr = false;         ///< values may exceed 1 (HDR capture) rather than 8-bit LDR
-    std::string note;         ///< free text shown by `btf info` (e.g. colour model, partial views)
+    bool hdr = false;            ///< values may exceed 1 (HDR capture) rather than 8-bit LDR
+    std::string note;  ///< free text shown by `btf info` (e.g. colour model, partial views)
 };
 
 class BtfSource {
-public:
+  public:
     virtual ~BtfSource() = default;
 
     /// Texels per image row and per column.

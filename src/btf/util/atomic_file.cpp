@@ -18,8 +18,7 @@ AtomicOutput::AtomicOutput(fs::path destination, bool directory)
     if (parent.empty()) parent = ".";
     std::error_code ec;
     if (!fs::is_directory(parent, ec))
-        fail("{}: cannot write: folder {} does not exist", m_destination.string(),
-             parent.string());
+        fail("{}: cannot write: folder {} does not exist", m_destination.string(), parent.string());
     if (fs::is_directory(m_destination, ec))
         fail("{}: cannot write: a folder of that name exists (remove it first)",
              m_destination.string());

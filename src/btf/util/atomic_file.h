@@ -8,7 +8,7 @@
 namespace btf {
 
 class AtomicOutput {
-public:
+  public:
     /// Prepares to write `destination` (a file, or a folder when `directory` is true). Throws
     /// btf::Error if the destination's folder does not exist, or if `destination` is an existing
     /// folder (folders are never replaced).
@@ -25,7 +25,7 @@ public:
     /// Renames the temporary into place (replacing an existing file atomically).
     void commit();
 
-private:
+  private:
     std::filesystem::path m_destination;
     std::filesystem::path m_temp;
     bool m_directory;

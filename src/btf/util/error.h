@@ -11,13 +11,13 @@
 namespace btf {
 
 class Error : public std::runtime_error {
-public:
+  public:
     explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
 /// Thrown by util::Progress when an operation was cancelled by its caller.
 class Cancelled : public Error {
-public:
+  public:
     Cancelled() : Error("operation cancelled") {}
 };
 

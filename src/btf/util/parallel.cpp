@@ -10,6 +10,8 @@ ThreadLimit::ThreadLimit(int threads) {
                                             static_cast<size_t>(threads));
 }
 
-ThreadLimit::~ThreadLimit() { delete static_cast<tbb::global_control*>(m_control); }
+ThreadLimit::~ThreadLimit() {
+    delete static_cast<tbb::global_control*>(m_control);
+}
 
 }  // namespace btf

@@ -34,13 +34,13 @@ void parallel_chunks(int64_t begin, int64_t end, int64_t grain, Fn&& fn) {
 
 /// Limits btfkit's worker threads for the lifetime of the returned object (0 = all cores).
 class ThreadLimit {
-public:
+  public:
     explicit ThreadLimit(int threads);
     ~ThreadLimit();
     ThreadLimit(const ThreadLimit&) = delete;
     ThreadLimit& operator=(const ThreadLimit&) = delete;
 
-private:
+  private:
     void* m_control = nullptr;
 };
 

@@ -12,7 +12,7 @@
 namespace btf {
 
 class Progress {
-public:
+  public:
     /// Called with the current stage name, units done and units total (total may be 0 when
     /// unknown). Calls are serialized and rate-limited by the caller of the callback.
     using Callback = std::function<void(std::string_view stage, uint64_t done, uint64_t total)>;
@@ -39,7 +39,7 @@ public:
     uint64_t done() const { return m_done.load(); }
     uint64_t total() const { return m_total.load(); }
 
-private:
+  private:
     void report(bool force);
 
     Callback m_callback;
