@@ -1,1 +1,45 @@
-int main() { return 0; }
+// btf — the btfkit command. Thin by design: parse arguments, call the library, print.
+
+#include <cstdio>
+#include <vector>
+
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+#include "cli.h"
+
+int main(int argc, char** argv) {
+    using namespace btf::cli;
+    CLI::App app{
+        "btf: measured material appearance (Bidirectional Texture Functions) from disk "
+        "to pixels"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", "btfkit 0.1.0");
+    GlobalOptions global;
+    app.add_option("--threads", global.threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(0, 1024));
+    app.add_flag("-q,--quiet", global.quiet, "no progress output");
+
+    const std::vector<Command> commands = {
+        register_info(app, global),
+        register_formats(app, global),
+    };
+
+    try {
+        app.parse(argc, argv);
+        btf::ThreadLimit limit(global.threads);
+        for (const Command& command : commands)
+            if (command.parser->parsed()) command.run();
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    } catch (const btf::Cancelled&) {
+        std::fprintf(stderr, "btf: cancelled\n");
+        return 130;
+    } catch (const btf::Error& e) {
+        std::fprintf(stderr, "btf: error: %s\n", e.what());
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "btf: internal error: %s\n", e.what());
+        return 2;
+    }
+    return 0;
+}

@@ -1,0 +1,142 @@
+#include "cli.h"
+
+#include <unistd.h>
+
+#include <charconv>
+#include <chrono>
+#include <cstdio>
+
+#include "btf/util/error.h"
+
+namespace btf::cli {
+
+namespace {
+
+class Bar {
+  public:
+    explicit Bar(bool terminal) : m_terminal(terminal) {}
+
+    void update(std::string_view stage, uint64_t done, uint64_t total) {
+        const auto now = std::chrono::steady_clock::now();
+        if (stage != m_stage) {
+            if (m_terminal && !m_stage.empty()) std::fputc('\n', stderr);
+            m_stage = stage;
+            m_start = now;
+            m_last_decile = -1;
+        }
+        const double fraction = total ? double(done) / double(total) : 0.0;
+        const double elapsed = std::chrono::duration<double>(now - m_start).count();
+        std::string eta = "--:--";
+        if (done > 0 && total > 0 && done < total) {
+            const int seconds = int(elapsed * (double(total - done) / double(done)));
+            eta = fmt::format("{}:{:02}", seconds / 60, seconds % 60);
+        } else if (done >= total && total > 0) {
+            eta = fmt::format("{:.1f}s", elapsed);
+        }
+        if (m_terminal) {
+            constexpr int kWidth = 30;
+            const int filled = int(fraction * kWidth);
+            std::string bar(size_t(filled), '=');
+            if (filled < kWidth) bar += '>' + std::string(size_t(kWidth - filled - 1), ' ');
+            std::fprintf(stderr, "\r%-22.22s [%s] %3d%% %llu/%llu %s   ", m_stage.c_str(),
+                         bar.c_str(), int(fraction * 100), (unsigned long long)done,
+                         (unsigned long long)total, eta.c_str());
+            if (done >= total && total > 0) {
+                std::fputc('\n', stderr);
+                m_stage.clear();
+            }
+        } else {
+            const int decile = int(fraction * 10);
+            if (decile != m_last_decile) {
+                m_last_decile = decile;
+                std::fprintf(stderr, "%s: %d%% (%llu/%llu) %s\n", m_stage.c_str(), decile * 10,
+                             (unsigned long long)done, (unsigned long long)total, eta.c_str());
+            }
+        }
+        std::fflush(stderr);
+    }
+
+  private:
+    bool m_terminal;
+    std::string m_stage;
+    std::chrono::steady_clock::time_point m_start;
+    int m_last_decile = -1;
+};
+
+}  // namespace
+
+Progress make_progress(const GlobalOptions& options) {
+    if (options.quiet) return Progress();
+    auto bar = std::make_shared<Bar>(::isatty(2) != 0);
+    return Progress([bar](std::string_view stage, uint64_t done, uint64_t total) {
+        bar->update(stage, done, total);
+    });
+}
+
+namespace {
+std::vector<double> parse_numbers(const std::string& text, const std::string& option) {
+    std::vector<double> numbers;
+    size_t start = 0;
+    while (start <= text.size()) {
+        size_t end = text.find(',', start);
+        if (end == std::string::npos) end = text.size();
+        std::string field = text.substr(start, end - start);
+        while (!field.empty() && field.front() == ' ') field.erase(field.begin());
+        while (!field.empty() && field.back() == ' ') field.pop_back();
+        double value = 0;
+        auto [ptr, ec] = std::from_chars(field.data(), field.data() + field.size(), value);
+        if (field.empty() || ec != std::errc() || ptr != field.data() + field.size() ||
+            !std::isfinite(value))
+            fail("{}: '{}' is not a comma-separated list of numbers", option, text);
+        numbers.push_back(value);
+        start = end + 1;
+    }
+    return numbers;
+}
+}  // namespace
+
+Direction parse_direction(const std::string& text, const std::string& option) {
+    const std::vector<double> v = parse_numbers(text, option);
+    if (v.size() != 2) fail("{}: expected 'theta,phi' in degrees, got '{}'", option, text);
+    if (v[0] < 0 || v[0] > 90) fail("{}: theta {} is outside [0, 90] degrees", option, v[0]);
+    return Direction::from_degrees(v[0], v[1]);
+}
+
+std::pair<int, int> parse_pair(const std::string& text, const std::string& option) {
+    const std::vector<double> v = parse_numbers(text, option);
+    if (v.size() != 2 || v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]))
+        fail("{}: expected two integers 'x,y', got '{}'", option, text);
+    return {int(v[0]), int(v[1])};
+}
+
+std::vector<int> parse_indices(const std::string& text, const std::string& option) {
+    std::vector<int> indices;
+    for (double v : parse_numbers(text, option)) {
+        if (v != std::floor(v) || v < 0 || v > 1e6)
+            fail("{}: '{}' is not a list of indices", option, text);
+        indices.push_back(int(v));
+    }
+    return indices;
+}
+
+std::string human_bytes(double bytes) {
+    const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+    int u = 0;
+    while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
+    return u == 0 ? fmt::format("{:.0f} B", bytes) : fmt::format("{:.1f} {}", bytes, units[u]);
+}
+
+void add_open_options(CLI::App& command, OpenOptions& options, std::string& views_text) {
+    command.add_option("--views", views_text,
+                       "open only these views: comma-separated indices into the format's view set");
+    command.add_flag_callback(
+        "--raw", [&options] { options.encoding = Encoding::kRaw; },
+        "keep 8-bit code values instead of decoding sRGB to linear");
+}
+
+OpenOptions finish_open_options(OpenOptions options, const std::string& views_text) {
+    if (!views_text.empty()) options.views = parse_indices(views_text, "--views");
+    return options;
+}
+
+}  // namespace btf::cli
