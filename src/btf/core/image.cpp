@@ -4,6 +4,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <array>
 
 #include "btf/core/color.h"
 #include "btf/util/atomic_file.h"
@@ -33,6 +34,16 @@ Rgb Image::bilinear(double x, double y) const {
 
 namespace {
 
+// sRGB → linear for every 8-bit code value: a table instead of a pow() per value.
+const std::array<float, 256>& srgb_table() {
+    static const std::array<float, 256> table = [] {
+        std::array<float, 256> t{};
+        for (int i = 0; i < 256; ++i) t[i] = srgb_to_linear(i / 255.0f);
+        return t;
+    }();
+    return table;
+}
+
 Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encoding) {
     const OIIO::ImageSpec& spec = input.spec();
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
@@ -42,19 +53,41 @@ Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encod
     const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT ||
                           spec.format.basetype == OIIO::TypeDesc::HALF ||
                           spec.format.basetype == OIIO::TypeDesc::DOUBLE;
-    std::vector<float> pixels(size_t(spec.width) * spec.height * spec.nchannels);
-    if (!input.read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels.data())) {
-        std::string err = input.geterror();
-        fail("{}: cannot decode image: {}", name, err.empty() ? "unknown error" : err);
-    }
-    Image image(spec.width, spec.height, 3);
+    const bool is_8bit = spec.format.basetype == OIIO::TypeDesc::UINT8;
     const int nc = spec.nchannels;
+    const size_t count = size_t(spec.width) * spec.height * nc;
+    auto decode_error = [&] {
+        std::string err = input.geterror();
+        if (const size_t nl = err.find('\n'); nl != std::string::npos) err.resize(nl);
+        fail("{}: cannot decode image: {}", name, err.empty() ? "unknown error" : err);
+    };
+    Image image(spec.width, spec.height, 3);
+    float* out = image.data();
+    if (is_8bit) {
+        // Decode 8-bit files as bytes and map through a table (exact, and much faster).
+        std::vector<uint8_t> pixels(count);
+        if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, pixels.data())) decode_error();
+        // OpenImageIO reports some damage (e.g. a truncated JPEG) only through its error state.
+        if (input.has_error()) decode_error();
+        std::array<float, 256> table;
+        if (encoding == Encoding::kLinear) {
+            table = srgb_table();
+        } else {
+            for (int i = 0; i < 256; ++i) table[i] = i / 255.0f;
+        }
+        for (int64_t p = 0; p < image.num_pixels(); ++p)
+            for (int c = 0; c < 3; ++c) out[p * 3 + c] = table[pixels[p * nc + (nc < 3 ? 0 : c)]];
+        return image;
+    }
+    std::vector<float> pixels(count);
+    if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) decode_error();
+    if (input.has_error()) decode_error();
     const bool decode_srgb = !is_float && encoding == Encoding::kLinear;
     for (int64_t p = 0; p < image.num_pixels(); ++p) {
         for (int c = 0; c < 3; ++c) {
-            float v = pixels[p * nc + std::min(c, nc < 3 ? 0 : c)];
+            float v = pixels[p * nc + (nc < 3 ? 0 : c)];
             if (decode_srgb) v = srgb_to_linear(v);
-            image.data()[p * 3 + c] = v;
+            out[p * 3 + c] = v;
         }
     }
     return image;
@@ -75,15 +108,25 @@ Image read_image(const std::filesystem::path& path, Encoding encoding) {
 
 Image read_image_memory(const void* data, size_t size, const std::string& name, Encoding encoding) {
     OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
-    OIIO::ImageSpec config;
-    void* proxy = &reader;
-    config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
-    auto input = OIIO::ImageInput::open(name, &config);
+    // Passing the proxy directly (not as an "oiio:ioproxy" attribute) opens the stream once.
+    auto input = OIIO::ImageInput::open(name, nullptr, &reader);
     if (!input) {
         std::string err = OIIO::geterror();
         fail("{}: cannot read image: {}", name, err.empty() ? "unknown format" : err);
     }
     return read_from(*input, name, encoding);
+}
+
+std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size_t size,
+                                                          const std::string& name,
+                                                          std::string* error) {
+    OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
+    auto input = OIIO::ImageInput::open(name, nullptr, &reader);
+    if (!input) {
+        if (error) *error = OIIO::geterror();
+        return std::nullopt;
+    }
+    return std::pair<int, int>{input->spec().width, input->spec().height};
 }
 
 void write_image(const std::filesystem::path& path, const Image& image, Encoding encoding) {

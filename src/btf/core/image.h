@@ -4,6 +4,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "btf/core/math.h"
@@ -63,6 +66,12 @@ Image read_image(const std::filesystem::path& path, Encoding encoding = Encoding
 /// Reads an image held in memory (e.g. a JPEG inside a zip archive); `name` is used in errors.
 Image read_image_memory(const void* data, size_t size, const std::string& name,
                         Encoding encoding = Encoding::kLinear);
+/// Width and height from an image header held in memory (the format is chosen by the extension of
+/// `name`); `data` may be just the start of the file. Returns nothing if the header cannot be
+/// parsed from these bytes, with OpenImageIO's reason in `error` when given.
+std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size_t size,
+                                                          const std::string& name,
+                                                          std::string* error = nullptr);
 /// Writes an image; format from the extension. 8-bit formats (png, jpg) are sRGB-encoded from
 /// linear unless `encoding` is kRaw; exr is written as half floats, linear. Atomic (temp + rename).
 void write_image(const std::filesystem::path& path, const Image& image,
