@@ -21,6 +21,8 @@ int main(int argc, char** argv) {
 
     const std::vector<Command> commands = {
         register_info(app, global),
+        register_convert(app, global),
+        register_slice(app, global),
         register_formats(app, global),
     };
 

@@ -1,11 +1,25 @@
 #include "btf/io/open.h"
 
+#include "btf/io/h5.h"
+#include "btf/io/ubo2003.h"
+#include "btf/io/ubo2014.h"
+#include "btf/io/utia.h"
 #include "btf/util/error.h"
 
 namespace btf {
 
 const std::vector<Reader>& readers() {
-    static const std::vector<Reader> registry = {};
+    static const std::vector<Reader> registry = {
+        {"hdf5", "btfkit HDF5 raw BTF (interchange, readable with h5py)", h5::probe, h5::open},
+        {"ubo2014", "Bonn UBO2014 factorized .btf (DFMF !DFMF08FC, FMF !FMF12FCE)", ubo2014::probe,
+         ubo2014::open},
+        {"ubo2003",
+         "Bonn UBO2003 material: zip archive or folder of tvTTT_pvPPP/NNNNN tlTTT plPPP tvTTT "
+         "pvPPP.jpg (.hdr)",
+         ubo2003::probe, ubo2003::open},
+        {"utia", "UTIA image set: folder of tlTTT_plPPP_tvTTT_pvPPP.png or .exr", utia::probe,
+         utia::open},
+    };
     return registry;
 }
 
