@@ -20,10 +20,8 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", global.quiet, "no progress output");
 
     const std::vector<Command> commands = {
-        register_info(app, global),
-        register_convert(app, global),
-        register_slice(app, global),
-        register_formats(app, global),
+        register_info(app, global),  register_convert(app, global), register_synth(app, global),
+        register_slice(app, global), register_formats(app, global),
     };
 
     try {

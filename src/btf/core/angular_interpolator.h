@@ -20,7 +20,7 @@
 /// azimuth; a query without any such direction (zero, straight down, not finite) is treated as +x
 /// on the horizon.
 ///
-/// Degenerate sets (see docs/parts/interp.md):
+/// Degenerate sets (see docs/interpolation.md):
 /// - one direction: weight 1 on it everywhere;
 /// - two directions, or directions whose azimuths leave a gap of 180° or more (a partial ring, a
 ///   meridian): the auxiliary ring closes the hull; in a triangle with a single real vertex
@@ -55,7 +55,7 @@ struct AngularWeights {
 class AngularInterpolator {
   public:
     /// The triangulation and the lookup grid as plain arrays, so that a GPU shader can perform
-    /// exactly the same lookup (docs/parts/interp.md describes the algorithm step by step).
+    /// exactly the same lookup (docs/interpolation.md describes the algorithm step by step).
     struct Tables {
         /// R: the grid has R × R cells over the square [0,1]² of hemisphere_to_square(). A
         /// square point (u, v) lies in column min(⌊u·R⌋, R−1), row min(⌊v·R⌋, R−1); its cell

@@ -1,6 +1,7 @@
 #include "btf/core/direction.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <map>
@@ -55,7 +56,8 @@ TEST(DirectionSet, Dome151RingsAndOffsets) {
 }
 
 TEST(DirectionSet, FileRoundTripAndErrors) {
-    const fs::path dir = fs::path(testing::TempDir()) / "btf_direction_test";
+    const fs::path dir =
+        fs::path(testing::TempDir()) / ("btf_direction_test_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     const fs::path file = dir / "dirs.txt";
     DirectionSet::dome151().write(file);

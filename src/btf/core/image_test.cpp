@@ -1,6 +1,7 @@
 #include "btf/core/image.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <iterator>
@@ -16,7 +17,7 @@ namespace fs = std::filesystem;
 class ImageTest : public testing::Test {
   protected:
     void SetUp() override {
-        m_dir = fs::path(testing::TempDir()) / "btf_image_test";
+        m_dir = fs::path(testing::TempDir()) / ("btf_image_test_" + std::to_string(::getpid()));
         fs::remove_all(m_dir);
         fs::create_directories(m_dir);
     }

@@ -4,7 +4,7 @@
 /// per decorrelated colour channel) and the FMF body (`!FMF12FCE`, colour inside the matrix), each
 /// with or without the trailing `R` that announces rotation matrices, and writes DFMF.
 ///
-/// Decisions (docs/parts/ubo2014.md):
+/// Decisions (docs/formats.md, "Bonn UBO2014"):
 /// - Texel index y·W + x, row-major, (0, 0) = first pixel of the first image row, no flip: btflib's
 ///   texture decoder. Values are not clamped (UBO2014 data is HDR).
 /// - Colour models 0 (RGB) and 11 (log Y, U/Y, V/Y, eps 1e-5) are decoded to linear RGB; other

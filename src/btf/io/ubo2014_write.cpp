@@ -1,7 +1,7 @@
 // Writing UBO2014 `!DFMF08FC` files (FORMATS.md items 1–5) and the exact in-memory factorization
 // of small sources that feeds the writer.
 //
-// Byte layout written (all little-endian; docs/parts/ubo2014.md has the table):
+// Byte layout written (all little-endian; docs/formats.md, "Bonn UBO2014" has the table):
 //   signature "!DFMF08FC" (+ "R" with a rotation block)
 //   meta: u32 size, u32 version, char[80] × 3, f32 ppmm, f32[3] rgb scale,
 //         [v ≥ 2] u32 cosine flag, [v ≥ 3] u32 length + XML, [v ≥ 4] u32 nC + (u32 length + name)

@@ -1,6 +1,7 @@
 #include "btf/util/atomic_file.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <sstream>
@@ -22,7 +23,7 @@ std::string slurp(const fs::path& p) {
 class AtomicOutputTest : public testing::Test {
   protected:
     void SetUp() override {
-        m_dir = fs::path(testing::TempDir()) / "btf_atomic_test";
+        m_dir = fs::path(testing::TempDir()) / ("btf_atomic_test_" + std::to_string(::getpid()));
         fs::remove_all(m_dir);
         fs::create_directories(m_dir);
     }

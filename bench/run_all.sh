@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Runs every benchmark behind docs/benchmarks.md and prints its raw output. Usage:
+#   bash bench/run_all.sh [build-dir]        (make bench does this with build/release)
+# Timings need a quiet machine: nothing else should run meanwhile.
+set -euo pipefail
+build=${1:-build/release}
+echo "# $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')"
+echo; echo "## angular interpolation"; "$build/interp_bench" --benchmark_min_time=1
+echo; echo "## UBO2003 import (real view)"; "$build/ubo2003_import_bench" --benchmark_min_time=2
+echo; echo "## HDF5 write/read"; "$build/h5_speed"
+echo; echo "## synthesis"; "$build/synth_bench"
+echo; echo "## synthetic vs. real: rank-k relative RMSE"; "$build/synth_realism"
