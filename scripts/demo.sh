@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The main job of `make demo`: synthesize btfkit's built-in default material, describe it, and
+# write pictures of it at measured and in-between directions. Later stages of btfkit (compress,
+# assess, render, serve) extend this script.
+set -euo pipefail
+btf=${1:-build/release/btf}
+out=${DEMO_OUT:-out/demo}
+preset=${DEMO_PRESET:-woven_fabric}
+size=${DEMO_SIZE:-128}
+mkdir -p "$out"
+
+step() { printf '\n== %s\n' "$*"; }
+
+step "Synthesizing the default material: $preset, ${size}² texels, 81 lights × 81 views (UBO2003 sampling)"
+"$btf" synth --preset "$preset" --size "$size" --sampling ubo81 --seed 1 -o "$out/$preset.h5"
+
+step "btf info"
+"$btf" info "$out/$preset.h5"
+
+step "Slices: images at measured and in-between (interpolated) directions"
+slice() {  # light view name
+  "$btf" slice "$out/$preset.h5" --light "$1" --view "$2" -o "$out/${preset}_$3.png"
+}
+slice 0,0 0,0 light0_view0
+slice 60,0 0,0 light60_view0
+slice 75,180 30,0 light75-180_view30
+slice 45,90 45,270 mirror45
+slice 37,100 22,10 between_samples
+"$btf" slice "$out/$preset.h5" --texel $((size / 2)),$((size / 2)) --scale 4 \
+  -o "$out/${preset}_abrdf.png"
+
+real=../shared/data/ubo2003-proposte-view000
+if [ -d "$real" ]; then
+  step "The real measured view next to it (UBO2003, one view of 81)"
+  "$btf" info "$real" --sample 27
+  "$btf" slice "$real" --light 60,0 --view 0,0 -o "$out/real_light60_view0.png"
+fi
+
+step "Done. Pictures and the material are in $out/:"
+ls -1 "$out"
