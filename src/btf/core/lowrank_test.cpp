@@ -10,7 +10,7 @@
 #include <map>
 #include <random>
 
-#include "btf/io/source.h"
+#include "btf/io/function_source.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -19,32 +19,20 @@ namespace {
 using ::testing::HasSubstr;
 
 // A BtfSource over an explicit matrix: one view, rows = texels, column 3·light + channel.
-class MatrixSource : public BtfSource {
-  public:
-    MatrixSource(int width, int height, Eigen::MatrixXd matrix)
-        : m_width(width), m_height(height), m_matrix(std::move(matrix)) {
-        std::vector<Direction> lights;
-        for (int l = 0; l < m_matrix.cols() / 3; ++l)
-            lights.push_back(Direction::from_degrees(10.0 * l / 3, 7.0 * l));
-        m_sampling = {DirectionSet("one", {Direction{}}), DirectionSet("lights", lights)};
-        m_info.format = "test matrix";
-    }
-    int width() const override { return m_width; }
-    int height() const override { return m_height; }
-    const Sampling& sampling() const override { return m_sampling; }
-    const SourceInfo& info() const override { return m_info; }
-    void read_image(int view, int light, Image& out) const override {
-        out.reshape(m_width, m_height, 3);
-        for (int p = 0; p < m_width * m_height; ++p)
-            for (int c = 0; c < 3; ++c) out.data()[p * 3 + c] = float(m_matrix(p, 3 * light + c));
-    }
-
-  private:
-    int m_width, m_height;
-    Eigen::MatrixXd m_matrix;
-    Sampling m_sampling;
-    SourceInfo m_info;
-};
+FunctionSource matrix_source(int width, int height, Eigen::MatrixXd matrix) {
+    std::vector<Direction> lights;
+    for (int l = 0; l < matrix.cols() / 3; ++l)
+        lights.push_back(Direction::from_degrees(10.0 * l / 3, 7.0 * l));
+    Sampling sampling{DirectionSet("one", {Direction{}}), DirectionSet("lights", lights)};
+    return FunctionSource(
+        std::move(sampling), width, height,
+        [width, m = std::move(matrix)](int, int light, int x, int y) {
+            const int64_t p = int64_t(y) * width + x;
+            return Rgb{float(m(p, 3 * light)), float(m(p, 3 * light + 1)),
+                       float(m(p, 3 * light + 2))};
+        },
+        "test matrix");
+}
 
 // Float-exact random matrix (the source hands out floats).
 Eigen::MatrixXd random_matrix(int rows, int cols, uint32_t seed) {
@@ -59,7 +47,7 @@ Eigen::MatrixXd random_matrix(int rows, int cols, uint32_t seed) {
 TEST(LowRank, MatchesExplicitSvd) {
     const int width = 7, height = 5, lights = 6;
     const Eigen::MatrixXd a = random_matrix(width * height, 3 * lights, 42);
-    const MatrixSource source(width, height, a);
+    const FunctionSource source = matrix_source(width, height, a);
     const std::vector<int> ranks = {0, 1, 2, 4, 8, 17, 18, 40};
     const LowRankError e = light_matrix_low_rank(source, 0, ranks);
 
@@ -90,7 +78,7 @@ TEST(LowRank, ZeroForExactRankK) {
     const int width = 9, height = 8, lights = 10, k = 4;
     const Eigen::MatrixXd u = random_matrix(width * height, k, 1);
     const Eigen::MatrixXd v = random_matrix(3 * lights, k, 2);
-    const MatrixSource source(width, height, u * v.transpose());
+    const FunctionSource source = matrix_source(width, height, u * v.transpose());
     const LowRankError e = light_matrix_low_rank(source, 0, {k - 1, k, k + 3});
     EXPECT_GT(e.relative_rmse[0], 1e-3);
     // Floats in the images limit the exactness to about their precision.
@@ -100,7 +88,8 @@ TEST(LowRank, ZeroForExactRankK) {
 
 TEST(LowRank, BandsGiveTheSameResult) {
     const int width = 6, height = 11, lights = 5;
-    const MatrixSource source(width, height, random_matrix(width * height, 3 * lights, 7));
+    const FunctionSource source =
+        matrix_source(width, height, random_matrix(width * height, 3 * lights, 7));
     const LowRankError whole = light_matrix_low_rank(source, 0, {1, 2, 3, 6});
     LowRankOptions options;
     options.band_bytes = 1;  // one texel row per band
@@ -110,7 +99,7 @@ TEST(LowRank, BandsGiveTheSameResult) {
 }
 
 TEST(LowRank, ErrorsNameTheProblem) {
-    const MatrixSource source(4, 4, random_matrix(16, 6, 3));
+    const FunctionSource source = matrix_source(4, 4, random_matrix(16, 6, 3));
     try {
         light_matrix_low_rank(source, 1, {1});
         FAIL() << "expected an error";

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "btf/core/color.h"
+#include "btf/io/function_source.h"
 #include "btf/util/error.h"
 
 namespace btf::ubo2014 {
@@ -678,34 +679,18 @@ TEST_F(Ubo2014MaterialTest, EvalIsContinuous) {
 
 // ---- the in-memory factorization ---------------------------------------------------------------
 
-class AnalyticSource : public BtfSource {
-  public:
-    AnalyticSource(Sampling s, int w, int h) : m_s(std::move(s)), m_w(w), m_h(h) {
-        m_info.format = "test";
-    }
-    int width() const override { return m_w; }
-    int height() const override { return m_h; }
-    const Sampling& sampling() const override { return m_s; }
-    const SourceInfo& info() const override { return m_info; }
-    void read_image(int view, int light, Image& out) const override {
-        out.reshape(m_w, m_h, 3);
-        const double cl = m_s.lights.vector(light).z, cv = m_s.views.vector(view).z;
-        for (int y = 0; y < m_h; ++y)
-            for (int x = 0; x < m_w; ++x)
-                out.set_rgb(x, y,
-                            {float(0.3 + 0.2 * std::sin(x + 2.0 * y + view) * cl),
-                             float(0.2 + 0.1 * cv * std::cos(0.5 * x - y + light)),
-                             float(0.1 + 0.05 * (x + 1) * cl * cv + 0.01 * light)});
-    }
-
-  private:
-    Sampling m_s;
-    int m_w, m_h;
-    SourceInfo m_info;
-};
+FunctionSource analytic_source(Sampling s, int w, int h) {
+    const Sampling directions = s;
+    return FunctionSource(std::move(s), w, h, [directions](int view, int light, int x, int y) {
+        const double cl = directions.lights.vector(light).z, cv = directions.views.vector(view).z;
+        return Rgb{float(0.3 + 0.2 * std::sin(x + 2.0 * y + view) * cl),
+                   float(0.2 + 0.1 * cv * std::cos(0.5 * x - y + light)),
+                   float(0.1 + 0.05 * (x + 1) * cl * cv + 0.01 * light)};
+    });
+}
 
 TEST_F(Ubo2014Test, FullRankFactorizationReproducesTheSource) {
-    const AnalyticSource source(small_sampling(3, 4), 3, 2);
+    const FunctionSource source = analytic_source(small_sampling(3, 4), 3, 2);
     for (int32_t model : {kColorModelRgb, kColorModelLogYUV})
         for (bool cosine : {false, true}) {
             FactorizeOptions options;
@@ -728,7 +713,7 @@ TEST_F(Ubo2014Test, FullRankFactorizationReproducesTheSource) {
 }
 
 TEST_F(Ubo2014Test, TruncatedFactorizationIsEckartYoungOptimal) {
-    const AnalyticSource source(small_sampling(4, 5), 4, 4);
+    const FunctionSource source = analytic_source(small_sampling(4, 5), 4, 4);
     FactorizeOptions options;
     options.color_model = kColorModelRgb;
     options.components = 3;
@@ -750,7 +735,7 @@ TEST_F(Ubo2014Test, TruncatedFactorizationIsEckartYoungOptimal) {
 }
 
 TEST_F(Ubo2014Test, FactorizationRefusesLargeSources) {
-    const AnalyticSource source(small_sampling(3, 4), 5, 5);
+    const FunctionSource source = analytic_source(small_sampling(3, 4), 5, 5);
     FactorizeOptions options;
     options.max_samples = 200;
     EXPECT_THAT(error_of([&] { factorize(source, options); }),

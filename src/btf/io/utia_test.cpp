@@ -7,6 +7,7 @@
 #include <atomic>
 
 #include "btf/core/color.h"
+#include "btf/io/function_source.h"
 #include "btf/io/image_set.h"
 #include "btf/util/error.h"
 
@@ -50,34 +51,17 @@ std::string error_of(Fn&& fn) {
 }
 
 // A small analytic source: every (view, light, texel) has its own linear RGB value.
-class TestSource final : public BtfSource {
-  public:
-    TestSource(Sampling sampling, int width, int height, float scale = 1.0f)
-        : m_sampling(std::move(sampling)), m_width(width), m_height(height), m_scale(scale) {
-        m_info.format = "test";
-    }
-    int width() const override { return m_width; }
-    int height() const override { return m_height; }
-    const Sampling& sampling() const override { return m_sampling; }
-    const SourceInfo& info() const override { return m_info; }
-    void read_image(int view, int light, Image& out) const override {
-        out.reshape(m_width, m_height, 3);
-        for (int y = 0; y < m_height; ++y)
-            for (int x = 0; x < m_width; ++x) out.set_rgb(x, y, value(view, light, x, y));
-    }
-    Rgb value(int view, int light, int x, int y) const {
-        const float t = float(x + 2 * y) / float(m_width + 2 * m_height);
-        return Rgb{0.05f + 0.9f * float(light % 7) / 6, 0.1f + 0.8f * t,
-                   0.02f + 0.9f * float(view % 3) / 2 * (1 - t)} *
-               m_scale;
-    }
-
-  private:
-    Sampling m_sampling;
-    int m_width, m_height;
-    float m_scale;
-    SourceInfo m_info;
-};
+FunctionSource test_source(Sampling sampling, int width, int height, float scale = 1.0f) {
+    return FunctionSource(
+        std::move(sampling), width, height,
+        [=](int view, int light, int x, int y) {
+            const float t = float(x + 2 * y) / float(width + 2 * height);
+            return Rgb{0.05f + 0.9f * float(light % 7) / 6, 0.1f + 0.8f * t,
+                       0.02f + 0.9f * float(view % 3) / 2 * (1 - t)} *
+                   scale;
+        },
+        "test");
+}
 
 // Lights including angles between whole degrees (23.5°, 52.5°, 7.5°), views at whole degrees;
 // both ordered by θ, then φ, as the reader orders them.
@@ -112,7 +96,7 @@ TEST(UtiaNames, WholeAndDecimalDegrees) {
 
 TEST(UtiaRoundTrip, PngWithinEightBits) {
     TempFolder temp;
-    const TestSource source(small_sampling(), 6, 4);
+    const FunctionSource source = test_source(small_sampling(), 6, 4);
     const fs::path folder = temp.path() / "set_png";
     Progress progress;
     utia::write(source, folder, "png", progress);
@@ -153,7 +137,7 @@ TEST(UtiaRoundTrip, PngWithinEightBits) {
 
 TEST(UtiaRoundTrip, ExrWithinHalfPrecisionAndStoredAsXyz) {
     TempFolder temp;
-    const TestSource source(small_sampling(), 5, 3, 3.0f);  // HDR values up to 3
+    const FunctionSource source = test_source(small_sampling(), 5, 3, 3.0f);  // HDR values up to 3
     const fs::path folder = temp.path() / "set_exr";
     utia::write(source, folder, "exr");
     auto read = utia::open(folder);
@@ -205,13 +189,13 @@ TEST(UtiaRead, RecognizesUbo81AndOrdersOtherSetsByThetaThenPhi) {
     Sampling ubo;
     ubo.lights = DirectionSet::ubo81();
     ubo.views = DirectionSet::ubo81().subset({0, 20}, "two");
-    utia::write(TestSource(ubo, 2, 2), temp.path() / "ubo", "png");
+    utia::write(test_source(ubo, 2, 2), temp.path() / "ubo", "png");
     auto read = utia::open(temp.path() / "ubo");
     EXPECT_EQ(read->sampling().lights.name(), "ubo81");
     EXPECT_EQ(read->num_lights(), 81);
     EXPECT_TRUE(read->sampling().views.same_directions(ubo.views));
     // Light 20 of ubo81 read back is light 20 written (red level identifies light % 7).
-    EXPECT_NEAR(read->image(1, 20).rgb(0, 0).r, TestSource(ubo, 2, 2).value(1, 20, 0, 0).r, 0.01);
+    EXPECT_NEAR(read->image(1, 20).rgb(0, 0).r, test_source(ubo, 2, 2).value(1, 20, 0, 0).r, 0.01);
 
     // A light set given out of order is read back ordered by θ, then φ.
     Sampling shuffled;
@@ -219,7 +203,7 @@ TEST(UtiaRead, RecognizesUbo81AndOrdersOtherSetsByThetaThenPhi) {
         DirectionSet("shuffled", {Direction::from_degrees(60, 30), Direction::from_degrees(30, 200),
                                   Direction::from_degrees(30, 10)});
     shuffled.views = DirectionSet("v", {Direction::from_degrees(0, 0)});
-    utia::write(TestSource(shuffled, 2, 2), temp.path() / "shuffled", "png");
+    utia::write(test_source(shuffled, 2, 2), temp.path() / "shuffled", "png");
     const DirectionSet lights = utia::open(temp.path() / "shuffled")->sampling().lights;
     ASSERT_EQ(lights.size(), 3);
     EXPECT_NEAR(lights[0].phi_deg(), 10, 1e-9);
@@ -229,7 +213,7 @@ TEST(UtiaRead, RecognizesUbo81AndOrdersOtherSetsByThetaThenPhi) {
 
 TEST(UtiaRead, ChosenViews) {
     TempFolder temp;
-    const TestSource source(small_sampling(), 3, 3);
+    const FunctionSource source = test_source(small_sampling(), 3, 3);
     utia::write(source, temp.path() / "set", "png");
     OpenOptions options;
     options.views = {2, 0};
@@ -246,7 +230,7 @@ TEST(UtiaRead, ChosenViews) {
 TEST(UtiaErrors, MissingPair) {
     TempFolder temp;
     const fs::path folder = temp.path() / "set";
-    utia::write(TestSource(small_sampling(), 3, 3), folder, "png");
+    utia::write(test_source(small_sampling(), 3, 3), folder, "png");
     fs::remove(folder / "tl075_pl345_tv060_pv018.png");
     EXPECT_THAT(error_of([&] { utia::open(folder); }),
                 AllOf(HasSubstr("set"), HasSubstr("missing image 'tl075_pl345_tv060_pv018.png'"),
@@ -256,7 +240,7 @@ TEST(UtiaErrors, MissingPair) {
 TEST(UtiaErrors, RefusesToOverwrite) {
     TempFolder temp;
     const fs::path folder = temp.path() / "set";
-    const TestSource source(small_sampling(), 3, 3);
+    const FunctionSource source = test_source(small_sampling(), 3, 3);
     utia::write(source, folder, "png");
     const auto before = fs::last_write_time(folder / "tl000_pl000_tv000_pv000.png");
     EXPECT_THAT(error_of([&] { utia::write(source, folder, "exr"); }),
@@ -277,7 +261,7 @@ TEST(UtiaErrors, DirectionsThatWriteTheSameName) {
     s.lights =
         DirectionSet("l", {Direction::from_degrees(30, 10), Direction::from_degrees(30, 10.0001)});
     s.views = DirectionSet("v", {Direction::from_degrees(0, 0)});
-    EXPECT_THAT(error_of([&] { utia::write(TestSource(s, 2, 2), temp.path() / "x", "png"); }),
+    EXPECT_THAT(error_of([&] { utia::write(test_source(s, 2, 2), temp.path() / "x", "png"); }),
                 HasSubstr("lights 0 and 1 of the source both write the name 'tl030_pl010'"));
     EXPECT_FALSE(fs::exists(temp.path() / "x"));
 }
@@ -285,7 +269,7 @@ TEST(UtiaErrors, DirectionsThatWriteTheSameName) {
 TEST(UtiaErrors, MalformedFolders) {
     TempFolder temp;
     const fs::path folder = temp.path() / "set";
-    utia::write(TestSource(small_sampling(), 3, 3), folder, "png");
+    utia::write(test_source(small_sampling(), 3, 3), folder, "png");
     // Unparsable name.
     fs::copy_file(folder / "tl000_pl000_tv000_pv000.png", folder / "tl000_pl000_tv000.png");
     EXPECT_THAT(error_of([&] { utia::open(folder); }),
