@@ -70,9 +70,38 @@ TEST_F(BtfCli, BadInputGivesOneLineAndNonZeroExit) {
     EXPECT_NE(r.output.find("no-such-preset"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(path("x.h5")));
 
+    // Arguments are checked before the (possibly slow) opening of the input.
     r = run("slice " + path("missing.h5") + " --light 100,0 --view 0,0 -o " + path("s.png"));
-    EXPECT_NE(r.code, 0);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("--light: theta 100 is outside [0, 90] degrees"), std::string::npos)
+        << r.output;
     EXPECT_FALSE(fs::exists(path("s.png")));
+    r = run("slice " + path("missing.h5") + " --texel 1e10,0 -o " + path("s.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("--texel: expected two integers"), std::string::npos) << r.output;
+
+    // Output names that do not say what they are.
+    r = run("synth --preset leather --size 8 -o " + path("x.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("name the output *.h5"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(path("x.png")));
+    r = run("synth --preset leather --size 8 --sampling " + path("nodirs.txt") + " -o " +
+            path("x.h5"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("no such direction-set file"), std::string::npos) << r.output;
+}
+
+TEST_F(BtfCli, InterruptedRunLeavesNoFiles) {
+    // SIGTERM during a long write: the run unwinds, removes its temporary file and exits 130.
+    const fs::path dir = s_dir / "interrupt";
+    fs::create_directories(dir);
+    const std::string command =
+        "sh -c '" + std::string(BTF_TOOL_PATH) + " --quiet synth --preset leather --size 256 -o " +
+        (dir / "big.h5").string() + " & pid=$!; sleep 1.5; kill -TERM $pid; wait $pid; exit $?'";
+    const int status = std::system(command.c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 130);
+    EXPECT_TRUE(fs::is_empty(dir)) << "left behind: " << fs::directory_iterator(dir)->path();
 }
 
 TEST_F(BtfCli, SynthInfoSliceConvertRoundTrip) {
@@ -113,6 +142,11 @@ TEST_F(BtfCli, SynthInfoSliceConvertRoundTrip) {
     for (size_t i = 0; i < a.values().size(); ++i)
         max_error = std::max(max_error, double(std::abs(a.values()[i] - b.values()[i])));
     EXPECT_LT(max_error, 0.01);
+
+    r = run("convert " + h5 + " " + path("out.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("unknown output type '.png'"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(path("out.png")));
 
     // Converting onto an existing folder is refused and leaves it as it was.
     r = run("convert " + h5 + " " + path("utia"));

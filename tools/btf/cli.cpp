@@ -104,7 +104,8 @@ Direction parse_direction(const std::string& text, const std::string& option) {
 
 std::pair<int, int> parse_pair(const std::string& text, const std::string& option) {
     const std::vector<double> v = parse_numbers(text, option);
-    if (v.size() != 2 || v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]))
+    auto is_int = [](double d) { return d == std::floor(d) && std::abs(d) <= 1e9; };
+    if (v.size() != 2 || !is_int(v[0]) || !is_int(v[1]))
         fail("{}: expected two integers 'x,y', got '{}'", option, text);
     return {int(v[0]), int(v[1])};
 }

@@ -69,6 +69,11 @@ Command register_convert(CLI::App& app, GlobalOptions& global) {
                                                                 : ubo2014::kColorModelLogYUV;
                     ubo2014::write_dfmf(args->output, *source, options, progress);
                 } else {
+                    if (!ext.empty())
+                        fail(
+                            "{}: unknown output type '{}': name a .h5 or .btf file, or a folder "
+                            "without an extension for a UTIA image set",
+                            args->output, ext);
                     std::string format = args->format;
                     if (format.empty()) format = source->info().hdr ? "exr" : "png";
                     utia::write(*source, args->output, format, progress);

@@ -1,6 +1,9 @@
 // btf slice FILE --light θ,φ --view θ,φ -o img.png   |   btf slice FILE --texel x,y -o abrdf.png
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "btf/io/slice.h"
 #include "cli.h"
@@ -31,26 +34,50 @@ Command register_slice(CLI::App& app, GlobalOptions& global) {
     texel->excludes(light)->excludes(view);
     add_open_options(*cmd, args->open, args->views);
 
-    return {cmd, [args, &global] {
-                const auto source =
-                    open_source(args->path, finish_open_options(args->open, args->views));
-                Image image;
-                if (!args->texel.empty()) {
-                    const auto [x, y] = parse_pair(args->texel, "--texel");
-                    Progress progress = make_progress(global);
-                    image = abrdf_image(*source, x, y, args->scale, progress);
-                } else if (!args->light.empty()) {
-                    const Direction wi = parse_direction(args->light, "--light");
-                    const Direction wo = parse_direction(args->view, "--view");
-                    image = slice_image(*source, wi.vector(), wo.vector());
-                } else {
-                    throw CLI::RequiredError("--light and --view, or --texel");
-                }
-                write_image(args->output, image);
-                if (!global.quiet)
-                    std::printf("wrote %s (%dx%d)\n", args->output.c_str(), image.width(),
-                                image.height());
-            }};
+    return {
+        cmd, [args, &global] {
+            // Check the arguments before opening: opening a large archive takes time.
+            std::optional<std::pair<int, int>> texel;
+            Direction wi, wo;
+            if (!args->texel.empty()) {
+                texel = parse_pair(args->texel, "--texel");
+            } else if (!args->light.empty()) {
+                wi = parse_direction(args->light, "--light");
+                wo = parse_direction(args->view, "--view");
+            } else {
+                throw CLI::RequiredError("--light and --view, or --texel");
+            }
+            const auto source =
+                open_source(args->path, finish_open_options(args->open, args->views));
+            Image image;
+            if (texel) {
+                Progress progress = make_progress(global);
+                image = abrdf_image(*source, texel->first, texel->second, args->scale, progress);
+            } else {
+                image = slice_image(*source, wi.vector(), wo.vector());
+                // A partial material (or a sparse direction set) can only repeat what it
+                // has: say so when the nearest measured direction is far away.
+                auto warn_if_far = [](const DirectionSet& set, const Direction& d,
+                                      const char* what) {
+                    const int i = set.nearest(d.vector());
+                    const double angle =
+                        degrees(std::acos(std::clamp(dot(set.vector(i), d.vector()), -1.0, 1.0)));
+                    if (angle > 20)
+                        std::fprintf(stderr,
+                                     "btf: note: the nearest measured %s (%.1f, %.1f) is "
+                                     "%.0f degrees from the requested one; the image is "
+                                     "extrapolated from the %d measured %ss\n",
+                                     what, set[i].theta_deg(), set[i].phi_deg(), angle, set.size(),
+                                     what);
+                };
+                warn_if_far(source->sampling().views, wo, "view");
+                warn_if_far(source->sampling().lights, wi, "light");
+            }
+            write_image(args->output, image);
+            if (!global.quiet)
+                std::printf("wrote %s (%dx%d)\n", args->output.c_str(), image.width(),
+                            image.height());
+        }};
 }
 
 }  // namespace btf::cli

@@ -4,6 +4,7 @@
 
 #include "btf/io/h5.h"
 #include "btf/synth/synth.h"
+#include "btf/util/error.h"
 #include "cli.h"
 
 namespace btf::cli {
@@ -37,6 +38,9 @@ Command register_synth(CLI::App& app, GlobalOptions& global) {
                     return;
                 }
                 if (args->output.empty()) throw CLI::RequiredError("-o,--output");
+                const std::string ext = std::filesystem::path(args->output).extension().string();
+                if (ext != ".h5" && ext != ".hdf5")
+                    fail("{}: synth writes btfkit HDF5: name the output *.h5", args->output);
                 const DirectionSet set = DirectionSet::named(args->sampling);
                 const auto source =
                     synth::make(args->preset, args->size, Sampling{set, set}, args->seed);

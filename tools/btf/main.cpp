@@ -1,5 +1,6 @@
 // btf — the btfkit command. Thin by design: parse arguments, call the library, print.
 
+#include <csignal>
 #include <cstdio>
 #include <vector>
 
@@ -7,12 +8,24 @@
 #include "btf/util/parallel.h"
 #include "cli.h"
 
+namespace {
+// First SIGINT/SIGTERM: cancel the running operation, which unwinds and removes its temporary
+// output. A second one ends the process at once.
+extern "C" void on_signal(int signal) {
+    btf::Progress::cancel_all();
+    std::signal(signal, SIG_DFL);
+}
+}  // namespace
+
 int main(int argc, char** argv) {
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
     using namespace btf::cli;
     CLI::App app{
         "btf: measured material appearance (Bidirectional Texture Functions) from disk "
         "to pixels"};
     app.require_subcommand(1);
+    app.option_defaults()->always_capture_default();
     app.set_version_flag("--version", "btfkit 0.1.0");
     GlobalOptions global;
     app.add_option("--threads", global.threads, "worker threads (default: all cores)")

@@ -63,6 +63,9 @@ const DirectionSet& DirectionSet::dome151() {
 }
 
 DirectionSet DirectionSet::read(const std::filesystem::path& path) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        fail("{}: no such direction-set file (built-in sets: ubo81, dome151)", path.string());
     std::ifstream in(path);
     if (!in) fail("{}: cannot open direction set", path.string());
     std::vector<Direction> dirs;

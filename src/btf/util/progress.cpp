@@ -42,8 +42,20 @@ void Progress::finish() {
     report(true);
 }
 
+namespace {
+std::atomic<bool> g_cancel_all{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "cancel_all must be async-signal-safe");
+}  // namespace
+
+void Progress::cancel_all() noexcept {
+    g_cancel_all.store(true);
+}
+bool Progress::all_cancelled() noexcept {
+    return g_cancel_all.load();
+}
+
 void Progress::poll() const {
-    if (m_cancelled.load()) throw Cancelled();
+    if (m_cancelled.load() || g_cancel_all.load()) throw Cancelled();
 }
 
 void Progress::report(bool force) {

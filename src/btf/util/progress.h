@@ -33,8 +33,13 @@ class Progress {
     /// Requests cancellation; the next advance() or poll() throws btf::Cancelled.
     void cancel() { m_cancelled.store(true); }
     bool cancelled() const { return m_cancelled.load(); }
-    /// Throws btf::Cancelled if cancellation was requested.
+    /// Throws btf::Cancelled if cancellation was requested, for this operation or process-wide.
     void poll() const;
+
+    /// Requests cancellation of every operation in the process (async-signal-safe: the CLI calls
+    /// it from its SIGINT/SIGTERM handler so interrupted runs unwind and leave no temporary files).
+    static void cancel_all() noexcept;
+    static bool all_cancelled() noexcept;
 
     uint64_t done() const { return m_done.load(); }
     uint64_t total() const { return m_total.load(); }
