@@ -118,6 +118,31 @@ std::unique_ptr<BtfSource> open(const fs::path& path, const OpenOptions& options
     };
     auto [light_set, light_index] = build(lights, "utia-lights");
     auto [view_set, view_index] = build(views, "utia-views");
+    // Every view carries the same lights, so a missing light image cannot be told from a
+    // smaller light set by the pairs alone. A light set that is a known set less a few
+    // directions is a missing image, not a design: report it.
+    for (const DirectionSet* known : {&DirectionSet::ubo81(), &DirectionSet::dome151()}) {
+        if (light_set.size() >= known->size() || light_set.size() < known->size() * 9 / 10)
+            continue;
+        std::vector<bool> present(known->size(), false);
+        bool subset = true;
+        for (const Direction& d : light_set.directions()) {
+            const int i = known->find(d, radians(0.01));
+            if (i < 0)
+                subset = false;
+            else
+                present[i] = true;
+        }
+        if (!subset) continue;
+        for (int i = 0; i < known->size(); ++i)
+            if (!present[i])
+                fail(
+                    "{}: the lights are {} of the {} {} directions; missing light θ={}°, φ={}° "
+                    "(e.g. {})",
+                    path.string(), light_set.size(), known->size(), known->name(),
+                    (*known)[i].theta_deg(), (*known)[i].phi_deg(),
+                    file_name((*known)[i], view_set[0], ext.substr(1)));
+    }
     const int num_lights = light_set.size(), num_views = view_set.size();
     check(int(light_index.size()) == num_lights && int(view_index.size()) == num_views,
           "{}: directions in the image names are too close to tell apart", path.string());

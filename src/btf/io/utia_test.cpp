@@ -237,6 +237,20 @@ TEST(UtiaErrors, MissingPair) {
                       HasSubstr("14 of 3 views × 5 lights = 15 images present")));
 }
 
+TEST(UtiaErrors, MissingLightOfASingleView) {
+    // One view: a missing light cannot show as a missing pair; the near-complete ubo81 light
+    // set gives it away.
+    TempFolder temp;
+    const fs::path folder = temp.path() / "one-view";
+    const Sampling one_view{DirectionSet::ubo81().subset({0}, "v0"), DirectionSet::ubo81()};
+    utia::write(test_source(one_view, 2, 2), folder, "png");
+    fs::remove(folder / "tl045_pl020_tv000_pv000.png");
+    EXPECT_THAT(
+        error_of([&] { utia::open(folder); }),
+        AllOf(HasSubstr("one-view"), HasSubstr("80 of the 81 ubo81 directions"),
+              HasSubstr("missing light θ=45°, φ=20°"), HasSubstr("tl045_pl020_tv000_pv000.png")));
+}
+
 TEST(UtiaErrors, RefusesToOverwrite) {
     TempFolder temp;
     const fs::path folder = temp.path() / "set";
