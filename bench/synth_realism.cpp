@@ -23,7 +23,7 @@
 
 #include "btf/core/direction.h"
 #include "btf/core/image.h"
-#include "btf/core/lowrank.h"
+#include "btf/quality/lowrank.h"
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
 

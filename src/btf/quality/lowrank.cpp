@@ -1,4 +1,4 @@
-#include "btf/core/lowrank.h"
+#include "btf/quality/lowrank.h"
 
 #include <Eigen/Dense>
 
