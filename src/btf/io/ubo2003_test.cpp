@@ -11,6 +11,7 @@
 
 #include "btf/core/color.h"
 #include "btf/io/image_set.h"
+#include "btf/testing/temp_folder.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -25,26 +26,7 @@ using FileMap = std::map<std::string, Bytes>;  // relative path → contents
 
 const fs::path kRealView = fs::path(BTF_SHARED_DIR) / "data/ubo2003-proposte-view000/tv000_pv000";
 
-class TempFolder {
-  public:
-    TempFolder() {
-        static std::atomic<int> counter{0};
-        const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-        m_path = fs::path(testing::TempDir()) / fmt::format("btf_ubo2003_{}_{}_{}",
-                                                            info ? info->name() : "suite",
-                                                            ::getpid(), counter++);
-        fs::remove_all(m_path);
-        fs::create_directories(m_path);
-    }
-    ~TempFolder() {
-        std::error_code ec;
-        fs::remove_all(m_path, ec);
-    }
-    const fs::path& path() const { return m_path; }
-
-  private:
-    fs::path m_path;
-};
+using btf::test::TempFolder;
 
 Bytes read_bytes(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);

@@ -9,6 +9,7 @@
 #include "btf/core/color.h"
 #include "btf/io/function_source.h"
 #include "btf/io/image_set.h"
+#include "btf/testing/temp_folder.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -18,26 +19,7 @@ namespace fs = std::filesystem;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 
-class TempFolder {
-  public:
-    TempFolder() {
-        static std::atomic<int> counter{0};
-        const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-        m_path =
-            fs::path(testing::TempDir()) /
-            fmt::format("btf_utia_{}_{}_{}", info ? info->name() : "suite", ::getpid(), counter++);
-        fs::remove_all(m_path);
-        fs::create_directories(m_path);
-    }
-    ~TempFolder() {
-        std::error_code ec;
-        fs::remove_all(m_path, ec);
-    }
-    const fs::path& path() const { return m_path; }
-
-  private:
-    fs::path m_path;
-};
+using btf::test::TempFolder;
 
 template <typename Fn>
 std::string error_of(Fn&& fn) {

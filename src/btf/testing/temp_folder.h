@@ -1,0 +1,39 @@
+#pragma once
+// Test support (GoogleTest only; not part of the library): a fresh folder per test.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <string>
+
+namespace btf::test {
+
+/// A new empty folder under GoogleTest's temporary folder, removed with everything in it when
+/// the object goes. Unique per process, test and object: CTest runs test processes in parallel.
+class TempFolder {
+  public:
+    explicit TempFolder(const std::string& prefix = "btf") {
+        static std::atomic<int> counter{0};
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        m_path = std::filesystem::path(::testing::TempDir()) /
+                 (prefix + "_" + (info ? info->name() : "suite") + "_" +
+                  std::to_string(::getpid()) + "_" + std::to_string(counter++));
+        std::filesystem::remove_all(m_path);
+        std::filesystem::create_directories(m_path);
+    }
+    ~TempFolder() {
+        std::error_code ec;
+        std::filesystem::remove_all(m_path, ec);
+    }
+    TempFolder(const TempFolder&) = delete;
+    TempFolder& operator=(const TempFolder&) = delete;
+
+    const std::filesystem::path& path() const { return m_path; }
+
+  private:
+    std::filesystem::path m_path;
+};
+
+}  // namespace btf::test
