@@ -11,7 +11,7 @@
 
 #include "btf/core/color.h"
 #include "btf/io/image_set.h"
-#include "btf/testing/temp_folder.h"
+#include "btf/testing/support.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -110,16 +110,7 @@ void write_zip(const fs::path& path, const FileMap& files, bool store = true) {
     ASSERT_EQ(zip_close(za), 0) << zip_strerror(za);
 }
 
-template <typename Fn>
-std::string error_of(Fn&& fn) {
-    try {
-        fn();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    ADD_FAILURE() << "expected a btf::Error";
-    return {};
-}
+using btf::test::error_of;
 
 // Opens a source and reads every image, so that lazy decode errors surface too.
 void open_and_read(const fs::path& path) {

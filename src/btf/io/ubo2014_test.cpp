@@ -17,6 +17,7 @@
 
 #include "btf/core/color.h"
 #include "btf/io/function_source.h"
+#include "btf/testing/support.h"
 #include "btf/util/error.h"
 
 namespace btf::ubo2014 {
@@ -177,14 +178,7 @@ void expect_near(const Rgb& a, const Rgb& b, float tolerance) {
     EXPECT_NEAR(a.b, b.b, tolerance * scale);
 }
 
-std::string error_of(const std::function<void()>& fn) {
-    try {
-        fn();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "(no error)";
-}
+using btf::test::error_of;
 
 // ---- round trips -------------------------------------------------------------------------------
 

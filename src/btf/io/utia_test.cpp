@@ -9,7 +9,7 @@
 #include "btf/core/color.h"
 #include "btf/io/function_source.h"
 #include "btf/io/image_set.h"
-#include "btf/testing/temp_folder.h"
+#include "btf/testing/support.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -21,16 +21,7 @@ using ::testing::HasSubstr;
 
 using btf::test::TempFolder;
 
-template <typename Fn>
-std::string error_of(Fn&& fn) {
-    try {
-        fn();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    ADD_FAILURE() << "expected a btf::Error";
-    return {};
-}
+using btf::test::error_of;
 
 // A small analytic source: every (view, light, texel) has its own linear RGB value.
 FunctionSource test_source(Sampling sampling, int width, int height, float scale = 1.0f) {

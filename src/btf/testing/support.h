@@ -1,5 +1,6 @@
 #pragma once
-// Test support (GoogleTest only; not part of the library): a fresh folder per test.
+// Test support (GoogleTest only; not part of the library): a fresh folder per test, and the
+// message of an expected btf::Error.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -7,6 +8,8 @@
 #include <atomic>
 #include <filesystem>
 #include <string>
+
+#include "btf/util/error.h"
 
 namespace btf::test {
 
@@ -35,5 +38,18 @@ class TempFolder {
   private:
     std::filesystem::path m_path;
 };
+
+/// Runs `fn`, which must throw btf::Error, and returns the error's message (records a test
+/// failure and returns "" if it does not throw).
+template <typename Fn>
+std::string error_of(Fn&& fn) {
+    try {
+        fn();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "expected a btf::Error";
+    return {};
+}
 
 }  // namespace btf::test
