@@ -17,7 +17,6 @@
 
 #include "btf/core/color.h"
 #include "btf/io/function_source.h"
-#include "btf/testing/support.h"
 #include "btf/util/error.h"
 
 namespace btf::ubo2014 {
@@ -178,7 +177,14 @@ void expect_near(const Rgb& a, const Rgb& b, float tolerance) {
     EXPECT_NEAR(a.b, b.b, tolerance * scale);
 }
 
-using btf::test::error_of;
+std::string error_of(const std::function<void()>& fn) {
+    try {
+        fn();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "(no error)";
+}
 
 // ---- round trips -------------------------------------------------------------------------------
 
