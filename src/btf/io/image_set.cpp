@@ -22,6 +22,22 @@ namespace {
 // No single image of a BTF comes near this; a larger declared size means a corrupt directory.
 constexpr uint64_t kMaxImageFileBytes = uint64_t(1) << 31;
 
+// Files are listed in name order, whatever order the folder or archive gives them in.
+std::vector<size_t> name_order(const std::vector<std::string>& names) {
+    std::vector<size_t> order(names.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return names[a] < names[b]; });
+    return order;
+}
+
+template <typename T>
+std::vector<T> permuted(const std::vector<T>& values, const std::vector<size_t>& order) {
+    std::vector<T> out;
+    out.reserve(order.size());
+    for (size_t i : order) out.push_back(values[i]);
+    return out;
+}
+
 // ---- a folder tree on disk ---------------------------------------------------------------------
 
 class FolderFiles final : public ImageFiles {
@@ -31,15 +47,9 @@ class FolderFiles final : public ImageFiles {
         std::error_code ec;
         if (!fs::is_directory(root, ec)) fail("{}: no such folder", root.string());
         collect(root, "", max_depth);
-        std::vector<size_t> order(m_names.size());
-        for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-        std::sort(order.begin(), order.end(),
-                  [&](size_t a, size_t b) { return m_names[a] < m_names[b]; });
-        std::vector<std::string> names;
-        std::vector<uint64_t> sizes;
-        for (size_t i : order) names.push_back(m_names[i]), sizes.push_back(m_sizes[i]);
-        m_names = std::move(names);
-        m_sizes = std::move(sizes);
+        const std::vector<size_t> order = name_order(m_names);
+        m_names = permuted(m_names, order);
+        m_sizes = permuted(m_sizes, order);
     }
 
     std::vector<unsigned char> read(int i, uint64_t max_bytes) const override {
@@ -130,21 +140,10 @@ class ZipFiles final : public ImageFiles {
             m_sizes.push_back(st.size);
             m_entries.push_back(zip_uint64_t(e));
         }
-        std::vector<size_t> order(m_names.size());
-        for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-        std::sort(order.begin(), order.end(),
-                  [&](size_t a, size_t b) { return m_names[a] < m_names[b]; });
-        std::vector<std::string> names;
-        std::vector<uint64_t> sizes;
-        std::vector<zip_uint64_t> entries_sorted;
-        for (size_t i : order) {
-            names.push_back(m_names[i]);
-            sizes.push_back(m_sizes[i]);
-            entries_sorted.push_back(m_entries[i]);
-        }
-        m_names = std::move(names);
-        m_sizes = std::move(sizes);
-        m_entries = std::move(entries_sorted);
+        const std::vector<size_t> order = name_order(m_names);
+        m_names = permuted(m_names, order);
+        m_sizes = permuted(m_sizes, order);
+        m_entries = permuted(m_entries, order);
     }
 
     ~ZipFiles() override {
