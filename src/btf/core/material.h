@@ -15,6 +15,12 @@ struct Uv {
     double u = 0, v = 0;
 };
 
+/// One query of a batched evaluation.
+struct Query {
+    Uv uv;
+    Vec3 wi, wo;  ///< light and view direction
+};
+
 class Material {
   public:
     virtual ~Material() = default;
@@ -32,6 +38,13 @@ class Material {
 
     /// Value at exact sample indices and an integer texel (no interpolation).
     virtual Rgb eval_sample(int x, int y, int view, int light) const = 0;
+
+    /// eval() for every query; out.size() must equal queries.size(). Implementations may
+    /// reuse work between consecutive queries with the same directions.
+    virtual void eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
+        for (size_t i = 0; i < queries.size(); ++i)
+            out[i] = eval(queries[i].uv, queries[i].wi, queries[i].wo);
+    }
 };
 
 }  // namespace btf

@@ -1,0 +1,116 @@
+#include "btf/codecs/codec.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+
+#include "btf/codecs/fmf/fmf.h"
+#include "btf/codecs/lpca/lpca.h"
+#include "btf/codecs/pca_views/pca_views.h"
+#include "btf/util/error.h"
+
+namespace btf {
+
+Params Params::parse(const std::vector<std::string>& items) {
+    Params params;
+    for (const std::string& item : items) {
+        const size_t eq = item.find('=');
+        if (eq == std::string::npos || eq == 0)
+            fail("codec parameter '{}': expected key=value", item);
+        params.set(item.substr(0, eq), item.substr(eq + 1));
+    }
+    return params;
+}
+
+std::string Params::get_string(const std::string& key, const std::string& fallback) const {
+    m_used.insert(key);
+    const auto it = m_values.find(key);
+    return it == m_values.end() ? fallback : it->second;
+}
+
+std::string Params::get_choice(const std::string& key, const std::string& fallback,
+                               const std::vector<std::string>& allowed) const {
+    const std::string value = get_string(key, fallback);
+    if (std::find(allowed.begin(), allowed.end(), value) == allowed.end())
+        fail("parameter {}: '{}' is not one of {}", key, value, fmt::join(allowed, ", "));
+    return value;
+}
+
+int Params::get_int(const std::string& key, int fallback, int min, int max) const {
+    if (!has(key)) {
+        m_used.insert(key);
+        return fallback;
+    }
+    const std::string text = get_string(key, "");
+    int value = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+    if (ec != std::errc() || end != text.data() + text.size())
+        fail("parameter {}: '{}' is not an integer", key, text);
+    if (value < min || value > max)
+        fail("parameter {}: {} is outside [{}, {}]", key, value, min, max);
+    return value;
+}
+
+double Params::get_double(const std::string& key, double fallback, double min, double max) const {
+    if (!has(key)) {
+        m_used.insert(key);
+        return fallback;
+    }
+    const std::string text = get_string(key, "");
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value))
+        fail("parameter {}: '{}' is not a number", key, text);
+    if (value < min || value > max)
+        fail("parameter {}: {} is outside [{}, {}]", key, value, min, max);
+    return value;
+}
+
+bool Params::get_bool(const std::string& key, bool fallback) const {
+    const std::string text = get_string(key, fallback ? "true" : "false");
+    if (text == "true" || text == "1" || text == "yes" || text == "on") return true;
+    if (text == "false" || text == "0" || text == "no" || text == "off") return false;
+    fail("parameter {}: '{}' is not true or false", key, text);
+}
+
+void Params::check_all_used(std::string_view codec, const std::vector<ParamInfo>& known) const {
+    for (const auto& [key, value] : m_values) {
+        if (m_used.count(key)) continue;
+        std::vector<std::string> names;
+        for (const ParamInfo& info : known) names.push_back(info.name);
+        fail("codec {}: unknown parameter '{}' (known: {})", codec, key, fmt::join(names, ", "));
+    }
+}
+
+const std::vector<const Codec*>& codecs() {
+    static const std::vector<const Codec*> all = {&fmf_codec(), &pca_views_codec(), &lpca_codec()};
+    return all;
+}
+
+const Codec& find_codec(std::string_view name) {
+    std::vector<std::string> names;
+    for (const Codec* codec : codecs()) {
+        if (codec->name() == name) return *codec;
+        names.emplace_back(codec->name());
+    }
+    fail("unknown codec '{}' (known: {})", name, fmt::join(names, ", "));
+}
+
+std::unique_ptr<Material> open_material(const Package& package) {
+    return find_codec(package.codec()).open(package);
+}
+
+std::unique_ptr<Material> open_material(const std::filesystem::path& path) {
+    const Package package = read_package(path);
+    try {
+        return open_material(package);
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        fail("{}: {}", path.string(), e.what());
+    }
+}
+
+}  // namespace btf

@@ -1,0 +1,533 @@
+#include "btf/codecs/factor/model.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+#include "btf/core/angular_interpolator.h"
+#include "btf/core/color.h"
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace btf::factor {
+
+// ---- names -----------------------------------------------------------------------------------
+
+std::string to_string(Quantization q) {
+    switch (q) {
+        case Quantization::kF32:
+            return "f32";
+        case Quantization::kF16:
+            return "f16";
+        case Quantization::kU8:
+            return "u8";
+    }
+    return "?";
+}
+
+Quantization parse_quantization(const std::string& text) {
+    if (text == "f32") return Quantization::kF32;
+    if (text == "f16") return Quantization::kF16;
+    if (text == "u8") return Quantization::kU8;
+    fail("unknown quantization '{}' (known: f32, f16, u8)", text);
+}
+
+std::string to_string(ColourBasis basis) {
+    switch (basis) {
+        case ColourBasis::kRgb:
+            return "rgb";
+        case ColourBasis::kDecorrelated:
+            return "decorrelated";
+        case ColourBasis::kPerChannel:
+            return "per-channel";
+        case ColourBasis::kUboModel11:
+            return "model11";
+    }
+    return "?";
+}
+
+ColourBasis parse_colour_basis(const std::string& text) {
+    if (text == "rgb") return ColourBasis::kRgb;
+    if (text == "decorrelated") return ColourBasis::kDecorrelated;
+    if (text == "per-channel") return ColourBasis::kPerChannel;
+    if (text == "model11") return ColourBasis::kUboModel11;
+    fail("unknown colour handling '{}' (known: rgb, decorrelated, per-channel, model11)", text);
+}
+
+std::vector<ParamInfo> quantization_params() {
+    return {
+        {"quantize", "f16", "factor storage: f32, f16 or u8 (8 bits with per-component scale)"}};
+}
+
+// ---- colour ----------------------------------------------------------------------------------
+
+const std::array<float, 9>& ColourHandling::decorrelation() {
+    static const std::array<float, 9> t = [] {
+        const float a = 1 / std::sqrt(3.0f), b = 1 / std::sqrt(2.0f), c = 1 / std::sqrt(6.0f);
+        return std::array<float, 9>{a, a, a, b, -b, 0, c, c, -2 * c};
+    }();
+    return t;
+}
+
+Rgb ColourHandling::forward(const Rgb& rgb) const {
+    if (basis == ColourBasis::kUboModel11) {
+        const auto c = rgb_to_ubo_model11(rgb);
+        return {c[0], c[1], c[2]};
+    }
+    Rgb v = rgb;
+    if (log)
+        v = {std::log(std::max(v.r, 0.0f) + log_eps), std::log(std::max(v.g, 0.0f) + log_eps),
+             std::log(std::max(v.b, 0.0f) + log_eps)};
+    if (basis == ColourBasis::kDecorrelated) {
+        const auto& t = decorrelation();
+        return {t[0] * v.r + t[1] * v.g + t[2] * v.b, t[3] * v.r + t[4] * v.g + t[5] * v.b,
+                t[6] * v.r + t[7] * v.g + t[8] * v.b};
+    }
+    return v;
+}
+
+Rgb ColourHandling::inverse(const Rgb& p) const {
+    if (basis == ColourBasis::kUboModel11) return ubo_model11_to_rgb({p.r, p.g, p.b});
+    Rgb v = p;
+    if (basis == ColourBasis::kDecorrelated) {
+        const auto& t = decorrelation();  // orthonormal: the inverse is the transpose
+        v = {t[0] * p.r + t[3] * p.g + t[6] * p.b, t[1] * p.r + t[4] * p.g + t[7] * p.b,
+             t[2] * p.r + t[5] * p.g + t[8] * p.b};
+    }
+    if (log) v = {std::exp(v.r) - log_eps, std::exp(v.g) - log_eps, std::exp(v.b) - log_eps};
+    return v;
+}
+
+// ---- model -----------------------------------------------------------------------------------
+
+int64_t Model::rows(int group) const {
+    return int64_t(groups[group].size()) * sampling.num_lights() * colour.channels();
+}
+
+std::vector<std::vector<int32_t>> Model::cluster_texels() const {
+    std::vector<std::vector<int32_t>> out(clusters);
+    const int32_t texels = width * height;
+    if (clusters == 1) {
+        out[0].resize(texels);
+        std::iota(out[0].begin(), out[0].end(), 0);
+        return out;
+    }
+    for (int32_t t = 0; t < texels; ++t) out[texel_cluster[t]].push_back(t);
+    return out;
+}
+
+void Model::validate(const std::string& what) const {
+    if (width < 1 || height < 1) fail("{}: bad extent {}×{}", what, width, height);
+    if (sampling.views.empty() || sampling.lights.empty()) fail("{}: empty sampling", what);
+    std::vector<int> seen(sampling.num_views(), 0);
+    for (const auto& group : groups)
+        for (int v : group) {
+            if (v < 0 || v >= sampling.num_views()) fail("{}: group names view {}", what, v);
+            ++seen[v];
+        }
+    for (int v = 0; v < sampling.num_views(); ++v)
+        if (seen[v] != 1)
+            fail("{}: view {} is in {} groups (must be in exactly one)", what, v, seen[v]);
+    if (clusters < 1) fail("{}: {} clusters", what, clusters);
+    if (clusters > 1) {
+        if (static_cast<int64_t>(texel_cluster.size()) != int64_t(width) * height)
+            fail("{}: {} texel clusters for {} texels", what, texel_cluster.size(), width * height);
+        for (int32_t c : texel_cluster)
+            if (c < 0 || c >= clusters) fail("{}: texel cluster {} of {}", what, c, clusters);
+    }
+    const int64_t expected = int64_t(colour.planes()) * groups.size() * clusters;
+    if (static_cast<int64_t>(blocks.size()) != expected)
+        fail("{}: {} blocks, expected {}", what, blocks.size(), expected);
+    const auto texels = cluster_texels();
+    for (size_t i = 0; i < blocks.size(); ++i) {
+        const Block& b = blocks[i];
+        if (block_index(b.plane, b.group, b.cluster) != static_cast<int>(i))
+            fail("{}: block {} is out of order", what, i);
+        const int64_t rows = this->rows(b.group);
+        if (b.a.rows() != rows || b.b.rows() != static_cast<int64_t>(texels[b.cluster].size()) ||
+            b.a.cols() != b.b.cols() || static_cast<int>(b.energy.size()) != b.components() ||
+            (!b.mean.empty() && static_cast<int64_t>(b.mean.size()) != rows))
+            fail("{}: block {} has inconsistent shapes", what, i);
+    }
+}
+
+// ---- package ---------------------------------------------------------------------------------
+
+namespace {
+
+template <typename T>
+void append(std::vector<uint8_t>& out, const T* values, size_t count) {
+    const size_t at = out.size();
+    out.resize(at + count * sizeof(T));
+    std::memcpy(out.data() + at, values, count * sizeof(T));
+}
+
+void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
+    const AngularInterpolator::Tables t = AngularInterpolator(set).tables();
+    const int32_t head[6] = {t.grid_resolution,
+                             t.num_directions,
+                             t.num_vertices,
+                             t.lifted_horizon ? 1 : 0,
+                             static_cast<int32_t>(t.triangles.size() / 3),
+                             static_cast<int32_t>(t.cell_triangles.size())};
+    append(out, head, 6);
+    append(out, t.vertices.data(), t.vertices.size());
+    append(out, t.triangles.data(), t.triangles.size());
+    append(out, t.inverse.data(), t.inverse.size());
+    append(out, t.cell_offsets.data(), t.cell_offsets.size());
+    append(out, t.cell_triangles.data(), t.cell_triangles.size());
+}
+
+nlohmann::json directions_json(const DirectionSet& set) {
+    nlohmann::json theta = nlohmann::json::array(), phi = nlohmann::json::array();
+    for (const Direction& d : set.directions()) {
+        theta.push_back(d.theta);
+        phi.push_back(d.phi);
+    }
+    return {{"name", set.name()}, {"theta", theta}, {"phi", phi}};
+}
+
+DirectionSet directions_from_json(const nlohmann::json& j) {
+    const auto& theta = j.at("theta");
+    const auto& phi = j.at("phi");
+    if (!theta.is_array() || theta.size() != phi.size()) fail("direction arrays differ in length");
+    std::vector<Direction> dirs;
+    for (size_t i = 0; i < theta.size(); ++i)
+        dirs.push_back({theta[i].get<double>(), phi[i].get<double>()});
+    return DirectionSet(j.at("name").get<std::string>(), std::move(dirs));
+}
+
+// Bytes of one quantized column of n values.
+size_t column_bytes(Quantization q, int64_t n) {
+    switch (q) {
+        case Quantization::kF32:
+            return 4 * size_t(n);
+        case Quantization::kF16:
+            return 2 * size_t(n);
+        case Quantization::kU8:
+            return 8 + size_t(n);
+    }
+    return 0;
+}
+
+void put_column(std::vector<uint8_t>& out, Quantization q, const float* v, int64_t n,
+                int64_t stride) {
+    switch (q) {
+        case Quantization::kF32:
+            for (int64_t i = 0; i < n; ++i) append(out, &v[i * stride], 1);
+            return;
+        case Quantization::kF16:
+            for (int64_t i = 0; i < n; ++i) {
+                const uint16_t bits = Eigen::numext::bit_cast<uint16_t>(Eigen::half(v[i * stride]));
+                append(out, &bits, 1);
+            }
+            return;
+        case Quantization::kU8: {
+            float lo = v[0], hi = v[0];
+            for (int64_t i = 0; i < n; ++i) {
+                lo = std::min(lo, v[i * stride]);
+                hi = std::max(hi, v[i * stride]);
+            }
+            const float step = (hi - lo) / 255.0f;
+            const float head[2] = {lo, step};
+            append(out, head, 2);
+            for (int64_t i = 0; i < n; ++i) {
+                const float code = step > 0 ? std::round((v[i * stride] - lo) / step) : 0.0f;
+                const uint8_t byte = static_cast<uint8_t>(std::clamp(code, 0.0f, 255.0f));
+                append(out, &byte, 1);
+            }
+            return;
+        }
+    }
+}
+
+const uint8_t* get_column(Quantization q, const uint8_t* in, float* v, int64_t n, int64_t stride) {
+    switch (q) {
+        case Quantization::kF32:
+            for (int64_t i = 0; i < n; ++i, in += 4) std::memcpy(&v[i * stride], in, 4);
+            return in;
+        case Quantization::kF16:
+            for (int64_t i = 0; i < n; ++i, in += 2) {
+                uint16_t bits;
+                std::memcpy(&bits, in, 2);
+                v[i * stride] = static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
+            }
+            return in;
+        case Quantization::kU8: {
+            float head[2];
+            std::memcpy(head, in, 8);
+            in += 8;
+            for (int64_t i = 0; i < n; ++i) v[i * stride] = head[0] + head[1] * float(in[i]);
+            return in + n;
+        }
+    }
+    return in;
+}
+
+std::string component_name(int block, int k) {
+    return fmt::format("b{}.k{}", block, k);
+}
+
+PackageSection named_section(std::string name) {
+    PackageSection s;
+    s.name = std::move(name);
+    return s;
+}
+
+}  // namespace
+
+Package to_package(const Model& model, std::string_view codec, const nlohmann::json& params,
+                   Quantization quantization) {
+    model.validate(fmt::format("codec {}", codec));
+    Package package;
+    auto& h = package.header;
+    h["codec"] = std::string(codec);
+    h["params"] = params;
+    h["width"] = model.width;
+    h["height"] = model.height;
+    h["views"] = directions_json(model.sampling.views);
+    h["lights"] = directions_json(model.sampling.lights);
+    h["raw_bytes_8bit"] = int64_t(model.width) * model.height * model.sampling.num_images() * 3;
+    nlohmann::json m;
+    m["colour"] = to_string(model.colour.basis);
+    m["log"] = model.colour.log;
+    m["log_eps"] = model.colour.log_eps;
+    m["quantization"] = to_string(quantization);
+    m["groups"] = model.groups;
+    m["clusters"] = model.clusters;
+    nlohmann::json blocks = nlohmann::json::array();
+    for (const Block& b : model.blocks)
+        blocks.push_back({{"plane", b.plane},
+                          {"group", b.group},
+                          {"cluster", b.cluster},
+                          {"components", b.components()},
+                          {"mean", !b.mean.empty()},
+                          {"energy", b.energy}});
+    m["blocks"] = blocks;
+    h["model"] = m;
+
+    PackageSection tables = named_section("tables");
+    append_tables(tables.data, model.sampling.views);
+    append_tables(tables.data, model.sampling.lights);
+    package.sections.push_back(std::move(tables));
+    if (model.clusters > 1) {
+        PackageSection clusters = named_section("clusters");
+        append(clusters.data, model.texel_cluster.data(), model.texel_cluster.size());
+        package.sections.push_back(std::move(clusters));
+    }
+    PackageSection means = named_section("means");
+    for (const Block& b : model.blocks) append(means.data, b.mean.data(), b.mean.size());
+    package.sections.push_back(std::move(means));
+
+    // Components in decreasing energy over all blocks. Within a block the order must stay
+    // k = 0, 1, …, so a component's sort key is the smallest energy up to it.
+    struct Entry {
+        float key;
+        int block, k;
+    };
+    std::vector<Entry> order;
+    for (size_t i = 0; i < model.blocks.size(); ++i) {
+        float key = INFINITY;
+        for (int k = 0; k < model.blocks[i].components(); ++k) {
+            key = std::min(key, model.blocks[i].energy[k]);
+            order.push_back({key, static_cast<int>(i), k});
+        }
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [](const Entry& x, const Entry& y) { return x.key > y.key; });
+    for (const Entry& e : order) {
+        const Block& b = model.blocks[e.block];
+        PackageSection s = named_section(component_name(e.block, e.k));
+        s.data.reserve(column_bytes(quantization, b.a.rows()) +
+                       column_bytes(quantization, b.b.rows()));
+        put_column(s.data, quantization, b.a.data() + e.k, b.a.rows(), b.a.cols());
+        put_column(s.data, quantization, b.b.data() + e.k, b.b.rows(), b.b.cols());
+        package.sections.push_back(std::move(s));
+    }
+    package.declared_sections = static_cast<int>(package.sections.size());
+    return package;
+}
+
+Model from_package(const Package& package) {
+    const std::string what = fmt::format("package ({})", package.codec());
+    try {
+        const auto& h = package.header;
+        Model model;
+        model.width = h.at("width").get<int>();
+        model.height = h.at("height").get<int>();
+        if (model.width < 1 || model.height < 1 || model.width > (1 << 16) ||
+            model.height > (1 << 16))
+            fail("bad extent {}×{}", model.width, model.height);
+        model.sampling.views = directions_from_json(h.at("views"));
+        model.sampling.lights = directions_from_json(h.at("lights"));
+        const auto& m = h.at("model");
+        model.colour.basis = parse_colour_basis(m.at("colour").get<std::string>());
+        model.colour.log = m.at("log").get<bool>();
+        model.colour.log_eps = m.at("log_eps").get<float>();
+        const Quantization q = parse_quantization(m.at("quantization").get<std::string>());
+        model.groups = m.at("groups").get<std::vector<std::vector<int>>>();
+        model.clusters = m.at("clusters").get<int>();
+        if (model.clusters < 1 || model.clusters > model.width * model.height)
+            fail("{} clusters", model.clusters);
+        const int64_t texels = int64_t(model.width) * model.height;
+        if (model.clusters > 1) {
+            if (const PackageSection* s = package.find("clusters")) {
+                if (static_cast<int64_t>(s->data.size()) != texels * 4)
+                    fail("section 'clusters' holds {} bytes, expected {}", s->data.size(),
+                         texels * 4);
+                model.texel_cluster.resize(texels);
+                std::memcpy(model.texel_cluster.data(), s->data.data(), s->data.size());
+            } else {
+                model.texel_cluster.assign(texels, 0);  // a prefix without it has no factors yet
+            }
+        }
+        const auto& blocks = m.at("blocks");
+        const int planes = model.colour.planes();
+        if (static_cast<int64_t>(blocks.size()) !=
+            int64_t(planes) * static_cast<int64_t>(model.groups.size()) * model.clusters)
+            fail("{} blocks for {} planes × {} groups × {} clusters", blocks.size(), planes,
+                 model.groups.size(), model.clusters);
+        std::vector<int> declared(blocks.size());
+        model.blocks.resize(blocks.size());
+        // Validate groups and clusters before sizing blocks from them.
+        for (size_t i = 0; i < blocks.size(); ++i) {
+            Block& b = model.blocks[i];
+            b.plane = blocks[i].at("plane").get<int>();
+            b.group = blocks[i].at("group").get<int>();
+            b.cluster = blocks[i].at("cluster").get<int>();
+            declared[i] = blocks[i].at("components").get<int>();
+            if (b.plane < 0 || b.plane >= planes || b.group < 0 ||
+                b.group >= static_cast<int>(model.groups.size()) || b.cluster < 0 ||
+                b.cluster >= model.clusters || declared[i] < 0 || declared[i] > 4096)
+                fail("block {} is out of range", i);
+        }
+        const auto texel_lists = model.cluster_texels();
+        const PackageSection* means = package.find("means");
+        size_t mean_at = 0;
+        std::vector<std::vector<std::vector<float>>> columns(
+            blocks.size());  // [block][k]: a then b
+        for (size_t i = 0; i < blocks.size(); ++i) {
+            Block& b = model.blocks[i];
+            const int64_t rows = model.rows(b.group);
+            if (blocks[i].at("mean").get<bool>()) {
+                b.mean.assign(rows, 0.0f);
+                if (means) {
+                    if (means->data.size() < (mean_at + rows) * 4)
+                        fail("section 'means' is too short");
+                    std::memcpy(b.mean.data(), means->data.data() + mean_at * 4, rows * 4);
+                    mean_at += rows;
+                }
+            }
+        }
+        if (means && means->data.size() != mean_at * 4)
+            fail("section 'means' holds {} bytes, expected {}", means->data.size(), mean_at * 4);
+        // Component sections: count the leading components present per block.
+        std::vector<int> present(blocks.size(), 0);
+        std::vector<std::vector<const PackageSection*>> sections(blocks.size());
+        for (const PackageSection& s : package.sections) {
+            int block = -1, k = -1;
+            char tail = 0;
+            if (std::sscanf(s.name.c_str(), "b%d.k%d%c", &block, &k, &tail) != 2) continue;
+            if (block < 0 || block >= static_cast<int>(blocks.size()) || k != present[block] ||
+                k >= declared[block])
+                fail("component section '{}' is out of order or undeclared", s.name);
+            const int64_t rows = model.rows(model.blocks[block].group);
+            const int64_t cols = texel_lists[model.blocks[block].cluster].size();
+            if (s.data.size() != column_bytes(q, rows) + column_bytes(q, cols))
+                fail("section '{}' holds {} bytes, expected {}", s.name, s.data.size(),
+                     column_bytes(q, rows) + column_bytes(q, cols));
+            ++present[block];
+            sections[block].push_back(&s);
+        }
+        for (size_t i = 0; i < blocks.size(); ++i) {
+            Block& b = model.blocks[i];
+            const int k = present[i];
+            const auto energy = blocks[i].at("energy").get<std::vector<float>>();
+            if (static_cast<int>(energy.size()) != declared[i])
+                fail("block {} declares {} components but {} energies", i, declared[i],
+                     energy.size());
+            b.energy.assign(energy.begin(), energy.begin() + k);
+            b.a.resize(model.rows(b.group), k);
+            b.b.resize(static_cast<int64_t>(texel_lists[b.cluster].size()), k);
+            for (int c = 0; c < k; ++c) {
+                const uint8_t* in = sections[i][c]->data.data();
+                in = get_column(q, in, b.a.data() + c, b.a.rows(), k);
+                get_column(q, in, b.b.data() + c, b.b.rows(), k);
+            }
+        }
+        model.validate(what);
+        return model;
+    } catch (const nlohmann::json::exception& e) {
+        fail("{}: bad header: {}", what, e.what());
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        if (std::string_view(e.what()).starts_with(what)) throw;
+        fail("{}: {}", what, e.what());
+    }
+}
+
+// ---- source rows ----------------------------------------------------------------------------
+
+SourceRows::SourceRows(const BtfSource& source, ColourHandling colour,
+                       std::vector<std::vector<int>> groups)
+    : m_source(source), m_colour(colour), m_groups(static_cast<int>(groups.size())) {
+    m_group_of_view.assign(source.num_views(), -1);
+    m_slot_of_view.assign(source.num_views(), -1);
+    for (int g = 0; g < m_groups; ++g) {
+        for (size_t s = 0; s < groups[g].size(); ++s) {
+            const int v = groups[g][s];
+            if (v < 0 || v >= source.num_views() || m_group_of_view[v] >= 0)
+                fail("view groups: view {} is out of range or in two groups", v);
+            m_group_of_view[v] = g;
+            m_slot_of_view[v] = static_cast<int>(s);
+        }
+        m_group_rows.push_back(int64_t(groups[g].size()) * source.num_lights() * colour.channels());
+    }
+    for (int v = 0; v < source.num_views(); ++v)
+        if (m_group_of_view[v] < 0) fail("view groups: view {} is in no group", v);
+}
+
+int SourceRows::matrices() const {
+    return m_colour.planes() * m_groups;
+}
+
+int64_t SourceRows::rows(int matrix) const {
+    return m_group_rows[matrix % m_groups];
+}
+
+void SourceRows::read(int view, std::vector<int64_t>& first, std::vector<Matrix>& out) const {
+    const int planes = m_colour.planes(), channels = m_colour.channels();
+    const int lights = m_source.num_lights();
+    const int64_t texels = m_source.num_texels();
+    const int group = m_group_of_view[view];
+    first.assign(matrices(), 0);
+    out.resize(matrices());
+    for (int m = 0; m < matrices(); ++m)
+        if (m % m_groups != group) out[m].resize(0, texels);
+    for (int p = 0; p < planes; ++p) {
+        out[matrix(p, group)].resize(int64_t(lights) * channels, texels);
+        first[matrix(p, group)] = int64_t(m_slot_of_view[view]) * lights * channels;
+    }
+    parallel_for(0, lights, [&](int64_t light) {
+        thread_local Image image;
+        m_source.read_image(view, static_cast<int>(light), image);
+        const float* px = image.data();
+        for (int64_t t = 0; t < texels; ++t) {
+            const Rgb v = m_colour.forward({px[3 * t], px[3 * t + 1], px[3 * t + 2]});
+            const float c[3] = {v.r, v.g, v.b};
+            if (channels == 3) {
+                Matrix& rows = out[matrix(0, group)];
+                for (int ch = 0; ch < 3; ++ch) rows(light * 3 + ch, t) = c[ch];
+            } else {
+                for (int p = 0; p < 3; ++p) out[matrix(p, group)](light, t) = c[p];
+            }
+        }
+    });
+}
+
+}  // namespace btf::factor

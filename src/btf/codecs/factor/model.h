@@ -1,0 +1,178 @@
+#pragma once
+/// The linear factor model shared by the factorization codecs (fmf, pca-views, lpca): its
+/// package sections, its quantization and its fast evaluator.
+///
+/// The BTF is split into blocks by colour plane, view group and texel cluster. Each block is one
+/// factorized matrix whose rows are angular samples and whose columns are the block's texels:
+///
+///     row = (slot · nL + light) · channels + channel     (slot = position of the view in its
+///     group) value(row, texel) = mean[row] + Σ_k a(row, k) · b(texel, k)
+///
+/// - `fmf`: one group of all views, one cluster; rgb colour (channels = 3, one plane) or
+///   decorrelated colour (channels = 1, three planes).
+/// - `pca-views`: groups of k neighbouring views, one cluster, rows centred on their mean.
+/// - `lpca`: one group, texels clustered by their ABRDF, rows centred per cluster.
+///
+/// Colour: plane values are p = T · f(rgb), with f = identity or f(x) = log(x + eps) (dynamic
+/// range reduction) and T the identity (rgb) or an orthonormal luminance/chroma basis
+/// (decorrelated); decoding inverts both after the linear combination. Interpolation (bilinear
+/// in space, barycentric over views and lights) happens on the plane values.
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "btf/codecs/codec.h"
+#include "btf/codecs/factor/rsvd.h"
+#include "btf/core/direction.h"
+#include "btf/core/image.h"
+#include "btf/core/material.h"
+#include "btf/io/package.h"
+#include "btf/io/source.h"
+
+namespace btf::factor {
+
+/// Storage of the factors in a package.
+enum class Quantization {
+    kF32,  ///< IEEE float32
+    kF16,  ///< IEEE half (relative error ≤ 2⁻¹¹ of each value)
+    kU8,   ///< 8 bits per value with a per-column (per component, per factor) scale and offset
+};
+std::string to_string(Quantization q);
+/// "f32", "f16" or "u8"; throws btf::Error otherwise.
+Quantization parse_quantization(const std::string& text);
+
+/// How RGB values become the planes that are factorized.
+enum class ColourBasis {
+    kRgb,           ///< one plane whose rows hold the 3 channels (colour inside the ABRDF, FMF)
+    kDecorrelated,  ///< 3 planes in an orthonormal luminance/chroma basis
+    kPerChannel,    ///< 3 planes R, G, B (UBO2014 DFMF colour model 0)
+    kUboModel11,    ///< 3 planes (log Y, U/Y, V/Y) of UBO2014 DFMF colour model 11
+};
+std::string to_string(ColourBasis basis);
+/// "rgb", "decorrelated", "per-channel" or "model11"; throws btf::Error otherwise.
+ColourBasis parse_colour_basis(const std::string& text);
+
+struct ColourHandling {
+    ColourBasis basis = ColourBasis::kRgb;
+    /// Factorize log(value + log_eps) (dynamic-range reduction for HDR sources). Not combined
+    /// with kUboModel11, whose luminance plane is logarithmic already.
+    bool log = false;
+    float log_eps = 1e-3f;
+    int planes() const { return basis == ColourBasis::kRgb ? 1 : 3; }
+    int channels() const { return basis == ColourBasis::kRgb ? 3 : 1; }
+    /// The orthonormal basis of kDecorrelated (row-major 3×3): rows (1,1,1)/√3, (1,−1,0)/√2,
+    /// (1,1,−2)/√6, so that a squared error in plane space is the same squared error in (log)
+    /// RGB and components can be allocated across planes by singular value alone.
+    static const std::array<float, 9>& decorrelation();
+    /// rgb → plane values (for kRgb: the 3 channels after the optional log).
+    Rgb forward(const Rgb& rgb) const;
+    /// plane values → rgb.
+    Rgb inverse(const Rgb& planes) const;
+};
+
+struct Block {
+    int plane = 0, group = 0, cluster = 0;
+    std::vector<float> mean;  ///< one per row, or empty (no centring)
+    Matrix a;                 ///< rows × K
+    Matrix b;                 ///< texels of the cluster × K
+    /// Energy of each component (singular value, or the norm of a·bᵀ's column product); the
+    /// package stores components of all blocks in decreasing energy.
+    std::vector<float> energy;
+    int components() const { return static_cast<int>(a.cols()); }
+};
+
+struct Model {
+    int width = 0, height = 0;
+    Sampling sampling;
+    ColourHandling colour;
+    /// View indices of each group; every view is in exactly one group.
+    std::vector<std::vector<int>> groups;
+    int clusters = 1;
+    /// Cluster of each texel (y · width + x); empty when clusters == 1.
+    std::vector<int32_t> texel_cluster;
+    /// planes × groups × clusters blocks, index (plane · groups + group) · clusters + cluster.
+    std::vector<Block> blocks;
+
+    int block_index(int plane, int group, int cluster) const {
+        return (plane * static_cast<int>(groups.size()) + group) * clusters + cluster;
+    }
+    /// Rows of the blocks of group g: views in g × lights × channels.
+    int64_t rows(int group) const;
+    /// Texels of each cluster, in texel order (the columns of its blocks).
+    std::vector<std::vector<int32_t>> cluster_texels() const;
+    /// Throws btf::Error naming `what` when shapes disagree.
+    void validate(const std::string& what) const;
+};
+
+/// Package header fields and sections for a model: "tables" (the views' and lights'
+/// AngularInterpolator tables, for viewers), "clusters" (texel clusters, when more than one),
+/// "means" (all row means), then one section per component ("b<block>.k<k>": a's column then
+/// b's column) in decreasing energy over all blocks. `codec` and `params` go into the header.
+Package to_package(const Model& model, std::string_view codec, const nlohmann::json& params,
+                   Quantization quantization);
+/// The model in a package or a clean prefix of one: blocks keep the components whose sections
+/// are present (possibly none: the means alone). Throws btf::Error naming the package's codec and
+/// the problem for inconsistent headers or section sizes.
+Model from_package(const Package& package);
+
+/// The evaluator: eval() interpolates like btf::lookup6d (bilinear in space × ≤3 views × ≤3
+/// lights), accumulating the angular and the spatial weights on the factors first
+/// (a = Σ w_pair a(row), b = Σ w_texel b(texel), value = a · b) with vectorized component loops.
+class FactorMaterial final : public Material {
+  public:
+    explicit FactorMaterial(Model model);
+    ~FactorMaterial() override;
+
+    int width() const override { return m_model.width; }
+    int height() const override { return m_model.height; }
+    const Sampling& sampling() const override { return m_model.sampling; }
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
+    Rgb eval_sample(int x, int y, int view, int light) const override;
+
+    /// eval() for many queries (out.size() == queries.size()); consecutive queries with the same
+    /// directions reuse the angular accumulation.
+    void eval_batch(std::span<const Query> queries, std::span<Rgb> out) const override;
+    /// The same value as eval() computed in plain scalar code through lookup6d and
+    /// eval_sample(): the reference the vectorized path is tested against.
+    Rgb eval_reference(const Uv& uv, const Vec3& wi, const Vec3& wo) const;
+
+    const Model& model() const { return m_model; }
+    /// Components in use per block (after a prefix: fewer).
+    int total_components() const;
+
+  private:
+    struct Impl;
+    Model m_model;
+    std::unique_ptr<Impl> m_impl;
+};
+
+/// Row batches over a source for factorization: one matrix per (plane, group), batch b = the
+/// images of view b (all lights), colour converted by `colour`. Columns are all texels.
+class SourceRows final : public RowBatches {
+  public:
+    SourceRows(const BtfSource& source, ColourHandling colour,
+               std::vector<std::vector<int>> groups);
+    int matrices() const override;
+    int64_t rows(int matrix) const override;
+    int64_t cols(int) const override { return m_source.num_texels(); }
+    int batches() const override { return m_source.num_views(); }
+    void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override;
+
+    /// Matrix index of (plane, group).
+    int matrix(int plane, int group) const { return plane * m_groups + group; }
+
+  private:
+    const BtfSource& m_source;
+    ColourHandling m_colour;
+    int m_groups;
+    std::vector<int> m_group_of_view, m_slot_of_view;
+    std::vector<int64_t> m_group_rows;
+};
+
+/// The parameters every factorization codec shares: quantize (f32|f16|u8), zstd level is a
+/// package write option instead. Appends their ParamInfo.
+std::vector<ParamInfo> quantization_params();
+
+}  // namespace btf::factor

@@ -1,0 +1,85 @@
+#pragma once
+/// Truncated SVDs of BTF matrices too large for memory: the randomized range finder with
+/// oversampling and power iterations of Halko, Martinsson and Tropp (2011, algorithms 4.3/4.4
+/// and 5.1), run as streaming passes over the rows of one or more matrices.
+///
+/// A pass reads every row batch once and multiplies it with a thin matrix; memory is bounded by
+/// the thin factors (rows × l and cols × l floats, l = rank + oversampling) plus one batch, never
+/// the whole matrix. q power iterations cost 2 + 2q passes. Several matrices that share the
+/// batches (the three colour planes of a decorrelated factorization, the view groups of
+/// pca-views) are factorized in the same passes, so the source is read only 2 + 2q times.
+///
+/// Numerics are deterministic for a given seed: row products are computed per batch, column
+/// products in fixed column slices, independent of the number of threads.
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+#include "btf/util/progress.h"
+
+namespace btf::factor {
+
+/// Row-major float matrix (row r contiguous).
+using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// One or more matrices whose rows are read together in batches.
+class RowBatches {
+  public:
+    virtual ~RowBatches() = default;
+    virtual int matrices() const = 0;
+    virtual int64_t rows(int matrix) const = 0;
+    virtual int64_t cols(int matrix) const = 0;
+    virtual int batches() const = 0;
+    /// Reads batch `batch`: for each matrix m, the rows [first[m], first[m] + out[m].rows()) of
+    /// matrix m (out[m] may have no rows). Called from one thread at a time; may use worker
+    /// threads inside. `first` and `out` are resized to matrices().
+    virtual void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const = 0;
+};
+
+struct SvdOptions {
+    int rank = 16;             ///< components kept (clamped to min(rows, cols))
+    int oversampling = 10;     ///< extra random vectors of the range finder
+    int power_iterations = 2;  ///< q: sharper for slowly decaying spectra, 2 passes each
+    /// Subtract each row's mean over the columns before factorizing (PCA with row-mean centring).
+    bool subtract_mean = false;
+    uint64_t seed = 1;
+};
+
+/// value(r, c) ≈ mean[r] + Σ_k u(r, k) · sigma[k] · v(c, k); u and v have orthonormal columns.
+struct Svd {
+    Matrix u;                 ///< rows × rank
+    Eigen::VectorXf sigma;    ///< rank singular values, descending
+    Matrix v;                 ///< cols × rank
+    std::vector<float> mean;  ///< rows entries when subtract_mean, else empty
+    double total_energy = 0;  ///< ‖M − mean‖²_F, so that the truncation error is known:
+                              ///< ‖M − M_k‖²_F = total_energy − Σ sigma²
+};
+
+/// Randomized truncated SVDs of every matrix of `batches` (one result per matrix) in
+/// 2 + 2·power_iterations passes. Reports one progress unit per batch read.
+std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
+                                Progress& progress = Progress::none());
+
+/// Exact truncated SVD of an in-memory matrix (Eigen BDCSVD in double): the reference for tests.
+Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean);
+
+/// A RowBatches over in-memory matrices (tests, small inputs): batch b holds rows
+/// [b·batch_rows, (b+1)·batch_rows) of every matrix.
+class MemoryRows final : public RowBatches {
+  public:
+    MemoryRows(std::vector<const Matrix*> matrices, int batch_rows);
+    int matrices() const override { return static_cast<int>(m_matrices.size()); }
+    int64_t rows(int m) const override { return m_matrices[m]->rows(); }
+    int64_t cols(int m) const override { return m_matrices[m]->cols(); }
+    int batches() const override { return m_batches; }
+    void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override;
+
+  private:
+    std::vector<const Matrix*> m_matrices;
+    int m_batch_rows;
+    int m_batches;
+};
+
+}  // namespace btf::factor
