@@ -301,9 +301,15 @@ TEST(Fmf, CompressesABtfLargerThanItsMemoryCap) {
         const rlim_t cap = static_cast<rlim_t>(base + kHeadroom);
         const rlimit limit{cap, cap};
         if (setrlimit(RLIMIT_DATA, &limit) != 0) _exit(10);
+        // A rank-3 BTF from cheap terms, so that reading it costs little next to the passes.
         const Sampling s{DirectionSet::ubo81(), DirectionSet::ubo81()};
-        const FunctionSource source(
-            s, 128, 128, [&s](int v, int l, int x, int y) { return value_of(s, v, l, x, y); });
+        auto value = [&s](int v, int l, int x, int y) {
+            const Vec3 wi = s.lights.vector(l), wo = s.views.vector(v);
+            const double sum = wi.z * (0.5 + 0.003 * x) + wi.z * wo.z * (0.2 + 0.001 * y) +
+                               0.3 * std::max(0.0, wi.x * wo.x);
+            return Rgb{float(sum), float(0.8 * sum), float(0.5 * sum)};
+        };
+        const FunctionSource source(s, 128, 128, value);
         if (source.raw_bytes() < 3 * kHeadroom) _exit(11);
         try {
             std::vector<float> whole(source.raw_bytes() / 4);
@@ -312,10 +318,10 @@ TEST(Fmf, CompressesABtfLargerThanItsMemoryCap) {
         }
         try {
             const Package p =
-                encode(source, Params({{"components", "8"}, {"power-iterations", "1"}}));
+                encode(source, Params({{"components", "4"}, {"power-iterations", "0"}}));
             const auto material = fmf_codec().open(p);
-            const Rgb a = material->eval_sample(5, 7, 40, 20), b = value_of(s, 40, 20, 5, 7);
-            _exit(std::abs(a.g - b.g) < 0.05 ? 0 : 13);
+            const Rgb a = material->eval_sample(5, 7, 40, 20), b = value(40, 20, 5, 7);
+            _exit(std::abs(a.g - b.g) < 1e-3 * std::abs(b.g) + 1e-5 ? 0 : 13);
         } catch (const std::exception& e) {
             std::fprintf(stderr, "child: %s\n", e.what());
             _exit(14);
