@@ -39,6 +39,7 @@ format-check: bootstrap
 	@clang-format --dry-run -Werror $(SOURCES) && echo "format-check: $(words $(SOURCES)) files clean"
 
 bench: build
+	@bash scripts/bootstrap.sh --bench
 	@bash bench/run_all.sh $(BUILD_DIR)
 
 clean:

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages btfkit needs to build, test and run its demo. Idempotent: when
 # everything is present it changes nothing and needs no network. Run as root or with sudo.
+# With --bench it also installs what the benchmarks compare against (scikit-learn with OpenBLAS).
 set -euo pipefail
 
 packages=(
@@ -17,6 +18,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-h5py python3-numpy
 )
+if [ "${1:-}" = "--bench" ]; then
+  packages+=(python3-sklearn libopenblas0-pthread)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

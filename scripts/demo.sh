@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job of `make demo`: synthesize btfkit's built-in default material, describe it, and
-# write pictures of it at measured and in-between directions. Later stages of btfkit (compress,
-# assess, render, serve) extend this script.
+# write pictures of it at measured and in-between directions, then compress it and show what the
+# package costs and loses. Later stages of btfkit (assess, render, serve) extend this script.
 set -euo pipefail
 btf=${1:-build/release/btf}
 out=${DEMO_OUT:-out/demo}
@@ -28,6 +28,15 @@ slice 45,90 45,270 mirror45
 slice 37,100 22,10 between_samples
 "$btf" slice "$out/$preset.h5" --texel $((size / 2)),$((size / 2)) --scale 4 \
   -o "$out/${preset}_abrdf.png"
+
+step "Compressing it: fmf (one truncated SVD of the whole BTF), 32 components, half-float factors"
+"$btf" compress "$out/$preset.h5" -o "$out/$preset.btfpkg" --codec fmf --components 32 --quantize f16
+
+step "btf info of the package"
+"$btf" info "$out/$preset.btfpkg"
+
+step "btf eval: the package's linear RGB value between measured directions"
+"$btf" eval "$out/$preset.btfpkg" --uv 0.5,0.5 --light 37,100 --view 22,10
 
 real=../shared/data/ubo2003-proposte-view000
 if [ -d "$real" ]; then

@@ -1,16 +1,23 @@
 // End-to-end tests of the `btf` command: what a user types, what they get back.
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "btf/core/image.h"
 #include "btf/io/open.h"
+#include "btf/io/package.h"
 
 namespace btf {
 namespace {
@@ -53,10 +60,10 @@ fs::path BtfCli::s_dir;
 TEST_F(BtfCli, HelpListsEverySubcommand) {
     const CliResult r = run("--help");
     EXPECT_EQ(r.code, 0);
-    for (const char* sub : {"info", "convert", "synth", "slice", "formats"})
-        EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
-    for (const char* sub : {"info", "convert", "synth", "slice", "formats"})
-        EXPECT_EQ(run(std::string(sub) + " --help").code, 0) << sub;
+    const char* subs[] = {"info",       "convert", "synth",  "slice",  "compress",
+                          "decompress", "eval",    "codecs", "formats"};
+    for (const char* sub : subs) EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
+    for (const char* sub : subs) EXPECT_EQ(run(std::string(sub) + " --help").code, 0) << sub;
 }
 
 TEST_F(BtfCli, BadInputGivesOneLineAndNonZeroExit) {
@@ -152,6 +159,232 @@ TEST_F(BtfCli, SynthInfoSliceConvertRoundTrip) {
     r = run("convert " + h5 + " " + path("utia"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("exists"), std::string::npos) << r.output;
+}
+
+// Root-mean-square difference of two sources over every sample.
+double rmse(const BtfSource& a, const BtfSource& b) {
+    double sum = 0;
+    int64_t count = 0;
+    for (int v = 0; v < a.num_views(); ++v)
+        for (int l = 0; l < a.num_lights(); ++l) {
+            const Image x = a.image(v, l), y = b.image(v, l);
+            for (size_t i = 0; i < x.values().size(); ++i) {
+                const double d = double(x.values()[i]) - y.values()[i];
+                sum += d * d;
+            }
+            count += int64_t(x.values().size());
+        }
+    return std::sqrt(sum / double(count));
+}
+
+// Writes a 7-direction set (lights and views: 49 images keep the tests fast).
+std::string write_small_directions(const std::string& file) {
+    std::ofstream(file) << "0 0\n30 0\n30 120\n30 240\n60 60\n60 180\n60 300\n";
+    return file;
+}
+
+// The codecs `btf codecs` lists, with the parameter names of each.
+std::vector<std::pair<std::string, std::vector<std::string>>> listed_codecs() {
+    const CliResult r = run("codecs");
+    EXPECT_EQ(r.code, 0) << r.output;
+    std::vector<std::pair<std::string, std::vector<std::string>>> out;
+    std::istringstream lines(r.output);
+    std::string line;
+    while (std::getline(lines, line)) {
+        if (line.empty()) continue;
+        std::istringstream words(line);
+        std::string first;
+        words >> first;
+        if (line[0] != ' ') {
+            std::string description;
+            std::getline(words, description);
+            EXPECT_GT(description.size(), 10u) << "codec " << first << " has no description";
+            out.push_back({first, {}});
+        } else if (!out.empty()) {
+            // "    key=default  help"
+            const size_t eq = first.find('=');
+            EXPECT_NE(eq, std::string::npos) << line;
+            out.back().second.push_back(first.substr(0, eq));
+        }
+    }
+    return out;
+}
+
+TEST_F(BtfCli, CompressWithEveryCodecThenDecompressEvalInfo) {
+    const std::string h5 = path("tiny.h5");
+    CliResult r = run("synth --preset leather --size 16 --seed 2 --float --sampling " +
+                      write_small_directions(path("dirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    const auto original = open_source(h5);
+    ASSERT_EQ(original->num_views(), 7);
+
+    const auto codecs = listed_codecs();
+    ASSERT_FALSE(codecs.empty());
+    EXPECT_EQ(codecs[0].first, "fmf");
+    const std::regex summary(
+        R"((\S+): [0-9.]+ (B|KiB|MiB), ratio ([0-9.]+):1 \(vs 8-bit RGB raw\), RMSE ([0-9.e+-]+), )"
+        R"(encoded in [0-9.]+ s\n)");
+    for (const auto& [codec, params] : codecs) {
+        SCOPED_TRACE(codec);
+        const std::string package = path("c_" + codec + ".btfpkg");
+        std::string args = "compress " + h5 + " -o " + package + " --codec " + codec;
+        if (std::find(params.begin(), params.end(), "components") != params.end())
+            args += " --components 4";
+        r = run(args);
+        ASSERT_EQ(r.code, 0) << r.output;
+        std::smatch m;
+        ASSERT_TRUE(std::regex_search(r.output, m, summary)) << r.output;
+        EXPECT_EQ(m[1].str(), package);
+        const double ratio = std::stod(m[3].str()), printed_rmse = std::stod(m[4].str());
+        // 16² texels × 49 images × 3 bytes = 37632 bytes raw.
+        EXPECT_NEAR(ratio, 37632.0 / double(fs::file_size(package)), 0.051) << r.output;
+        EXPECT_GT(printed_rmse, 0.0);
+        EXPECT_LT(printed_rmse, 0.1) << r.output;
+
+        // Decompressed (float32), the samples are exactly what the RMSE was measured on.
+        const std::string decoded = path("d_" + codec + ".h5");
+        r = run("decompress " + package + " -o " + decoded + " --float");
+        ASSERT_EQ(r.code, 0) << r.output;
+        const auto back = open_source(decoded);
+        ASSERT_EQ(back->width(), 16);
+        ASSERT_EQ(back->num_views(), 7);
+        ASSERT_EQ(back->num_lights(), 7);
+        EXPECT_NEAR(rmse(*original, *back), printed_rmse, 0.005 * printed_rmse + 1e-6);
+
+        // At a texel centre and measured directions, eval returns that same sample.
+        const int view = original->sampling().views.find(Direction::from_degrees(60, 180));
+        const int light = original->sampling().lights.find(Direction::from_degrees(30, 120));
+        ASSERT_GE(view, 0);
+        ASSERT_GE(light, 0);
+        r = run("eval " + package + " --uv " + std::to_string(5.5 / 16) + "," +
+                std::to_string(9.5 / 16) + " --light 30,120 --view 60,180");
+        ASSERT_EQ(r.code, 0) << r.output;
+        std::istringstream numbers(r.output);
+        double rgb[3] = {-1, -1, -1};
+        numbers >> rgb[0] >> rgb[1] >> rgb[2];
+        ASSERT_FALSE(numbers.fail()) << r.output;
+        std::string rest;
+        numbers >> rest;
+        EXPECT_TRUE(rest.empty()) << r.output;
+        const Rgb expected = back->image(view, light).rgb(5, 9);
+        EXPECT_NEAR(rgb[0], expected.r, 1e-4 + 1e-4 * std::abs(expected.r)) << r.output;
+        EXPECT_NEAR(rgb[1], expected.g, 1e-4 + 1e-4 * std::abs(expected.g)) << r.output;
+        EXPECT_NEAR(rgb[2], expected.b, 1e-4 + 1e-4 * std::abs(expected.b)) << r.output;
+
+        r = run("info " + package);
+        ASSERT_EQ(r.code, 0) << r.output;
+        EXPECT_NE(r.output.find("btfkit package, codec " + codec), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("16 x 16 texels"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("(complete)"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("vs 8-bit RGB raw"), std::string::npos) << r.output;
+    }
+}
+
+TEST_F(BtfCli, InfoOnAPackagePrefix) {
+    const std::string h5 = path("prefix.h5");
+    CliResult r = run("synth --preset leather --size 16 --seed 4 --sampling " +
+                      write_small_directions(path("dirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string package = path("full.btfpkg");
+    r = run("compress " + h5 + " -o " + package + " --codec fmf --components 6 --quantize u8");
+    ASSERT_EQ(r.code, 0) << r.output;
+
+    r = run("info " + package);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("components=6"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("quantization u8"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("7 (dirs)"), std::string::npos) << r.output;
+
+    // Cut the file after its third section: a valid prefix, fewer components.
+    const Package full = read_package(package);
+    ASSERT_GT(full.declared_sections, 3);
+    std::ifstream in(package, std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GE(bytes.size(), size_t(kPackagePreamble));
+    uint32_t header_bytes = 0;
+    for (int i = 0; i < 4; ++i) header_bytes |= uint32_t(uint8_t(bytes[12 + i])) << (8 * i);
+    const PackageSection& third = full.sections[2];
+    const size_t cut = kPackagePreamble + header_bytes + third.offset + third.stored_size;
+    ASSERT_LT(cut, bytes.size());
+    const std::string prefix = path("prefix.btfpkg");
+    std::ofstream(prefix, std::ios::binary).write(bytes.data(), std::streamsize(cut));
+
+    r = run("info " + prefix);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find(fmt::format("3 of {}: a prefix", full.declared_sections)),
+              std::string::npos)
+        << r.output;
+    r = run("info --json " + prefix);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("\"prefix\": true"), std::string::npos) << r.output;
+    r = run("eval " + prefix + " --uv 0.5,0.5 --light 30,0 --view 0,0");
+    EXPECT_EQ(r.code, 0) << r.output;
+
+    // A cut inside a section is damage, not a prefix.
+    std::ofstream(path("cut.btfpkg"), std::ios::binary)
+        .write(bytes.data(), std::streamsize(cut - 1));
+    r = run("info " + path("cut.btfpkg"));
+    EXPECT_EQ(r.code, 1) << r.output;
+    EXPECT_NE(r.output.find("cut.btfpkg"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+TEST_F(BtfCli, CompressErrorsGiveOneLineAndNoFile) {
+    const std::string h5 = path("err.h5");
+    CliResult r = run("synth --preset leather --size 8 --sampling " +
+                      write_small_directions(path("dirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string out = path("err.btfpkg");
+    auto expect_error = [&](const std::string& args, const std::string& message) {
+        const CliResult e = run(args);
+        EXPECT_EQ(e.code, 1) << args << "\n" << e.output;
+        EXPECT_NE(e.output.find(message), std::string::npos) << e.output;
+        EXPECT_EQ(std::count(e.output.begin(), e.output.end(), '\n'), 1) << e.output;
+        EXPECT_FALSE(fs::exists(out)) << args;
+    };
+    expect_error("compress " + h5 + " -o " + out + " --codec nope",
+                 "unknown codec 'nope' (known: fmf");
+    expect_error("compress " + h5 + " -o " + out + " --codec fmf -p bogus=1",
+                 "codec fmf: unknown parameter 'bogus' (known: components");
+    expect_error("compress " + h5 + " -o " + out + " -p components", "expected key=value");
+    expect_error("compress " + h5 + " -o " + out + " --components 4 -p components=5",
+                 "give it once");
+    expect_error("compress " + h5 + " -o " + out + " -p colour=purple",
+                 "parameter colour: 'purple' is not one of");
+    expect_error("compress " + path("missing.h5") + " -o " + out, "no such file or folder");
+    r = run("compress " + h5 + " -o " + path("err.h5.out"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("name the output *.btfpkg"), std::string::npos) << r.output;
+    r = run("decompress " + h5 + " -o " + path("d.h5"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_FALSE(fs::exists(path("d.h5")));
+    r = run("eval " + h5 + " --uv 0,0 --light 0,0 --view 0,0");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("not a btfkit package or UBO2014 .btf file"), std::string::npos)
+        << r.output;
+}
+
+TEST_F(BtfCli, ConvertToDfmfThroughFmf) {
+    const std::string h5 = path("dfmf.h5");
+    CliResult r = run("synth --preset leather --size 16 --seed 5 --sampling " +
+                      write_small_directions(path("dirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    for (const char* colour : {"model11", "rgb"}) {
+        SCOPED_TRACE(colour);
+        const std::string btf = path(std::string("out_") + colour + ".btf");
+        r = run("convert " + h5 + " " + btf + " --components 8 --colour " + colour);
+        ASSERT_EQ(r.code, 0) << r.output;
+        r = run("info " + btf);
+        ASSERT_EQ(r.code, 0) << r.output;
+        EXPECT_NE(r.output.find("UBO2014"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("16 x 16 texels"), std::string::npos) << r.output;
+        EXPECT_NE(r.output.find("views        7 ("), std::string::npos) << r.output;
+        // 8 of 49 components per channel keep the synthetic material close.
+        const auto original = open_source(h5), back = open_source(btf);
+        EXPECT_LT(rmse(*original, *back), 0.05);
+        r = run("eval " + btf + " --uv 0.3,0.6 --light 45,30 --view 10,0");
+        EXPECT_EQ(r.code, 0) << r.output;
+    }
 }
 
 }  // namespace

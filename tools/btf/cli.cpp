@@ -2,10 +2,15 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cstdio>
 
+#include "btf/codecs/material_source.h"
+#include "btf/io/h5.h"
+#include "btf/io/package.h"
+#include "btf/io/utia.h"
 #include "btf/util/error.h"
 
 namespace btf::cli {
@@ -120,6 +125,16 @@ std::vector<int> parse_indices(const std::string& text, const std::string& optio
     return indices;
 }
 
+Uv parse_uv(const std::string& text, const std::string& option) {
+    const std::vector<double> v = parse_numbers(text, option);
+    if (v.size() != 2) fail("{}: expected texture coordinates 'u,v', got '{}'", option, text);
+    return {v[0], v[1]};
+}
+
+std::string format_ratio(double ratio) {
+    return ratio >= 10 ? fmt::format("{:.0f}:1", ratio) : fmt::format("{:.1f}:1", ratio);
+}
+
 std::string human_bytes(double bytes) {
     const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
     int u = 0;
@@ -138,6 +153,59 @@ void add_open_options(CLI::App& command, OpenOptions& options, std::string& view
 OpenOptions finish_open_options(OpenOptions options, const std::string& views_text) {
     if (!views_text.empty()) options.views = parse_indices(views_text, "--views");
     return options;
+}
+
+std::unique_ptr<BtfSource> open_input(const std::string& path, const OpenOptions& options,
+                                      const std::string& views_text) {
+    if (probe_package(path)) {
+        if (!views_text.empty() || options.encoding != Encoding::kLinear)
+            fail("{}: --views and --raw do not apply to a btfkit package", path);
+        return open_package_source(path);
+    }
+    return open_source(path, finish_open_options(options, views_text));
+}
+
+std::string lower_extension(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+OutputKind output_kind(const std::string& path) {
+    const std::string ext = lower_extension(path);
+    if (ext == ".h5" || ext == ".hdf5") return OutputKind::kHdf5;
+    if (ext == ".btf") return OutputKind::kDfmf;
+    if (ext == ".btfpkg") return OutputKind::kPackage;
+    if (ext.empty()) return OutputKind::kFolder;
+    return OutputKind::kOther;
+}
+
+void add_raw_output_options(CLI::App& command, RawOutputOptions& options) {
+    command
+        .add_option("--format", options.format,
+                    "UTIA image format: png (8-bit sRGB) or exr (half float XYZ); default png, "
+                    "exr for HDR sources")
+        ->check(CLI::IsMember({"png", "exr"}));
+    command.add_flag("--float", options.use_float, "HDF5: store float32 instead of half floats");
+    command.add_option("--deflate", options.deflate, "HDF5: deflate level 0-9 (0 = uncompressed)")
+        ->check(CLI::Range(0, 9));
+}
+
+void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
+               const RawOutputOptions& options, Progress& progress) {
+    if (kind == OutputKind::kHdf5) {
+        h5::WriteOptions h5_options;
+        h5_options.half = !options.use_float;
+        h5_options.deflate = options.deflate;
+        h5::write(source, output, h5_options, progress);
+    } else if (kind == OutputKind::kFolder) {
+        std::string format = options.format;
+        if (format.empty()) format = source.info().hdr ? "exr" : "png";
+        utia::write(source, output, format, progress);
+    } else {
+        fail("{}: not an HDF5 file or UTIA folder name", output);
+    }
 }
 
 }  // namespace btf::cli

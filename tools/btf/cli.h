@@ -5,10 +5,12 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "btf/core/direction.h"
+#include "btf/core/material.h"
 #include "btf/io/open.h"
 #include "btf/util/progress.h"
 
@@ -28,13 +30,46 @@ Direction parse_direction(const std::string& text, const std::string& option);
 std::pair<int, int> parse_pair(const std::string& text, const std::string& option);
 /// "1,5,7" → indices.
 std::vector<int> parse_indices(const std::string& text, const std::string& option);
+/// "u,v" → texture coordinates (any finite numbers: they wrap).
+Uv parse_uv(const std::string& text, const std::string& option);
 
 /// 1536 → "1.5 KiB".
 std::string human_bytes(double bytes);
+/// 412.3 → "412:1", 3.14 → "3.1:1".
+std::string format_ratio(double ratio);
 
 /// Adds --views and --raw to a subcommand and returns the OpenOptions they fill.
 void add_open_options(CLI::App& command, OpenOptions& options, std::string& views_text);
 OpenOptions finish_open_options(OpenOptions options, const std::string& views_text);
+
+/// Opens any BTF a reader knows, or a btfkit package (decoded through its codec: a
+/// MaterialSource). --views and --raw do not apply to packages and are refused for them.
+std::unique_ptr<BtfSource> open_input(const std::string& path, const OpenOptions& options,
+                                      const std::string& views_text);
+
+/// What an output name asks for, by its extension.
+enum class OutputKind {
+    kHdf5,     ///< .h5 / .hdf5
+    kDfmf,     ///< .btf
+    kPackage,  ///< .btfpkg
+    kFolder,   ///< no extension: a UTIA image set folder
+    kOther,
+};
+OutputKind output_kind(const std::string& path);
+/// Lower-case extension with its dot ("" for none).
+std::string lower_extension(const std::string& path);
+
+/// Options of raw outputs (btfkit HDF5 and UTIA image sets), shared by convert and decompress.
+struct RawOutputOptions {
+    std::string format;  // UTIA: png or exr; empty = exr for HDR sources, png otherwise
+    bool use_float = false;
+    int deflate = 0;
+};
+/// Adds --format, --float and --deflate.
+void add_raw_output_options(CLI::App& command, RawOutputOptions& options);
+/// Writes `source` as btfkit HDF5 (kind kHdf5) or a new UTIA image set folder (kind kFolder).
+void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
+               const RawOutputOptions& options, Progress& progress);
 
 /// A subcommand: its CLI11 parser and what to run once arguments are parsed.
 struct Command {
@@ -48,5 +83,9 @@ Command register_convert(CLI::App& app, GlobalOptions& global);
 Command register_synth(CLI::App& app, GlobalOptions& global);
 Command register_slice(CLI::App& app, GlobalOptions& global);
 Command register_formats(CLI::App& app, GlobalOptions& global);
+Command register_codecs(CLI::App& app, GlobalOptions& global);
+Command register_compress(CLI::App& app, GlobalOptions& global);
+Command register_decompress(CLI::App& app, GlobalOptions& global);
+Command register_eval(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli

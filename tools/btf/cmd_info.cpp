@@ -1,13 +1,152 @@
-// btf info FILE: format, extent, sampling, sizes and value statistics.
+// btf info FILE: format, extent, sampling, sizes and value statistics; for a btfkit package its
+// codec, parameters, ratio and sections.
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 
+#include "btf/codecs/codec.h"
 #include "btf/io/inspect.h"
+#include "btf/io/package.h"
+#include "btf/util/error.h"
 #include "cli.h"
 
 namespace btf::cli {
+
+namespace {
+
+// Sections whose names differ only in numbers ("b0.k3", "b2.k17": one per component) are
+// summarized together under the name with '*' for each number.
+std::string section_kind(const std::string& name) {
+    std::string kind;
+    for (size_t i = 0; i < name.size(); ++i) {
+        if (std::isdigit(static_cast<unsigned char>(name[i]))) {
+            if (kind.empty() || kind.back() != '*') kind += '*';
+        } else {
+            kind += name[i];
+        }
+    }
+    return kind;
+}
+
+struct SectionGroup {
+    std::string kind;
+    int count = 0, zstd = 0;
+    uint64_t stored = 0, decoded = 0;
+};
+
+std::vector<SectionGroup> group_sections(const Package& package) {
+    std::vector<SectionGroup> groups;
+    for (const PackageSection& s : package.sections) {
+        const std::string kind = section_kind(s.name);
+        auto it = std::find_if(groups.begin(), groups.end(),
+                               [&](const SectionGroup& g) { return g.kind == kind; });
+        if (it == groups.end()) it = groups.insert(groups.end(), SectionGroup{kind});
+        ++it->count;
+        it->zstd += s.coding == SectionCoding::kZstd ? 1 : 0;
+        it->stored += s.stored_size;
+        it->decoded += s.data.size();
+    }
+    return groups;
+}
+
+std::string param_text(const nlohmann::json& value) {
+    if (value.is_string()) return value.get<std::string>();
+    // Parameters stored as float show as typed, not with float32's binary digits.
+    if (value.is_number_float()) return fmt::format("{:g}", value.get<double>());
+    return value.dump();
+}
+
+void package_info(const std::string& path, bool json) {
+    const Package package = read_package(path);
+    // Opening checks the package through its codec and gives extent and sampling for any codec.
+    std::unique_ptr<Material> material;
+    try {
+        material = open_material(package);
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        fail("{}: {}", path, e.what());
+    }
+    const Sampling& s = material->sampling();
+    const double raw_8bit =
+        double(material->width()) * double(material->height()) * double(s.num_images()) * 3.0;
+    const double bytes = double(package.file_bytes);
+    const nlohmann::json params = package.header.value("params", nlohmann::json::object());
+    std::string quantization;
+    if (const auto m = package.header.find("model"); m != package.header.end() && m->is_object() &&
+                                                     m->contains("quantization") &&
+                                                     (*m)["quantization"].is_string())
+        quantization = (*m)["quantization"].get<std::string>();
+    const std::vector<SectionGroup> groups = group_sections(package);
+    const int present = static_cast<int>(package.sections.size());
+
+    if (json) {
+        nlohmann::json j;
+        j["file"] = path;
+        j["format"] = "btfkit package";
+        j["codec"] = package.codec();
+        j["params"] = params;
+        j["width"] = material->width();
+        j["height"] = material->height();
+        j["views"] = {{"count", s.num_views()}, {"set", s.views.name()}};
+        j["lights"] = {{"count", s.num_lights()}, {"set", s.lights.name()}};
+        j["images"] = s.num_images();
+        if (!quantization.empty()) j["quantization"] = quantization;
+        j["bytes_on_disk"] = package.file_bytes;
+        j["bytes_raw_8bit"] = static_cast<uint64_t>(raw_8bit);
+        j["ratio_vs_8bit"] = bytes > 0 ? raw_8bit / bytes : 0.0;
+        j["sections"] = {{"present", present},
+                         {"declared", package.declared_sections},
+                         {"prefix", !package.complete()}};
+        nlohmann::json stored = nlohmann::json::array();
+        for (const SectionGroup& g : groups)
+            stored.push_back({{"kind", g.kind},
+                              {"count", g.count},
+                              {"zstd", g.zstd},
+                              {"stored_bytes", g.stored},
+                              {"decoded_bytes", g.decoded}});
+        j["sections"]["stored"] = stored;
+        std::printf("%s\n", j.dump(2).c_str());
+        return;
+    }
+    auto row = [](const std::string& key, const std::string& value) {
+        std::printf("%-12s %s\n", key.c_str(), value.c_str());
+    };
+    std::vector<std::string> items;
+    for (const auto& [key, value] : params.items()) items.push_back(key + "=" + param_text(value));
+    row("file", path);
+    row("format", fmt::format("btfkit package, codec {}", package.codec()));
+    row("parameters",
+        items.empty() ? "(codec defaults)" : fmt::format("{}", fmt::join(items, " ")));
+    row("extent", fmt::format("{} x {} texels", material->width(), material->height()));
+    row("views", fmt::format("{} ({})", s.num_views(), s.views.name()));
+    row("lights", fmt::format("{} ({})", s.num_lights(), s.lights.name()));
+    row("images", fmt::format("{}", s.num_images()));
+    if (!quantization.empty()) row("quantization", quantization);
+    row("on disk", human_bytes(bytes));
+    row("ratio",
+        fmt::format("{} vs 8-bit RGB raw ({})", format_ratio(bytes > 0 ? raw_8bit / bytes : 0.0),
+                    human_bytes(raw_8bit)));
+    row("sections", package.complete()
+                        ? fmt::format("{} of {} (complete)", present, package.declared_sections)
+                        : fmt::format("{} of {}: a prefix, decoded as a lower-quality material",
+                                      present, package.declared_sections));
+    for (const SectionGroup& g : groups) {
+        std::string coding = g.zstd == g.count ? "zstd"
+                             : g.zstd == 0
+                                 ? "raw"
+                                 : fmt::format("{} zstd, {} raw", g.zstd, g.count - g.zstd);
+        row("  " + g.kind,
+            fmt::format("{}{} stored ({}), {} decoded",
+                        g.count > 1 ? fmt::format("{} sections, ", g.count) : "",
+                        human_bytes(double(g.stored)), coding, human_bytes(double(g.decoded))));
+    }
+}
+
+}  // namespace
 
 Command register_info(CLI::App& app, GlobalOptions& global) {
     struct Args {
@@ -22,7 +161,9 @@ Command register_info(CLI::App& app, GlobalOptions& global) {
     CLI::App* cmd = app.add_subcommand("info",
                                        "Describe a BTF: format, extent, sampling, sizes, "
                                        "value statistics");
-    cmd->add_option("file", args->path, "BTF file or folder (any format btfkit reads)")->required();
+    cmd->add_option("file", args->path,
+                    "BTF file or folder (any format btfkit reads), or a btfkit package")
+        ->required();
     cmd->add_option("--sample", args->sample,
                     "images to read for the statistics, spread over all (view, light) pairs")
         ->check(CLI::Range(int64_t{0}, int64_t{1} << 40));
@@ -31,6 +172,12 @@ Command register_info(CLI::App& app, GlobalOptions& global) {
     add_open_options(*cmd, args->open, args->views);
 
     return {cmd, [args, &global] {
+                if (probe_package(args->path)) {
+                    if (!args->views.empty() || args->open.encoding != Encoding::kLinear)
+                        fail("{}: --views and --raw do not apply to a btfkit package", args->path);
+                    package_info(args->path, args->json);
+                    return;
+                }
                 const auto source =
                     open_source(args->path, finish_open_options(args->open, args->views));
                 Progress progress = make_progress(global);

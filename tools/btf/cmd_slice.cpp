@@ -21,7 +21,7 @@ Command register_slice(CLI::App& app, GlobalOptions& global) {
         app.add_subcommand("slice",
                            "Write a picture of a BTF: the image at any light and view direction "
                            "(interpolated), or one texel's apparent BRDF");
-    cmd->add_option("file", args->path, "BTF file or folder")->required();
+    cmd->add_option("file", args->path, "BTF file or folder, or a btfkit package")->required();
     cmd->add_option("-o,--output", args->output, "output image (.png, .jpg: sRGB; .exr: linear)")
         ->required();
     auto* light = cmd->add_option("--light", args->light, "light direction 'theta,phi' in degrees");
@@ -47,8 +47,7 @@ Command register_slice(CLI::App& app, GlobalOptions& global) {
             } else {
                 throw CLI::RequiredError("--light and --view, or --texel");
             }
-            const auto source =
-                open_source(args->path, finish_open_options(args->open, args->views));
+            const auto source = open_input(args->path, args->open, args->views);
             Image image;
             if (texel) {
                 Progress progress = make_progress(global);

@@ -132,6 +132,10 @@ struct FactorMaterial::Impl {
 
     // Views' groups in first-seen order (≤ 3).
     static int distinct_groups(const Impl& self, const AngularWeights& vw, int* out) {
+        if (self.groups == 1) {
+            out[0] = 0;
+            return 1;
+        }
         int n = 0;
         for (int v = 0; v < vw.count; ++v) {
             if (vw.weight[v] == 0) continue;
@@ -158,6 +162,11 @@ struct FactorMaterial::Impl {
         t.weight[1] = lx.t * (1 - ly.t);
         t.weight[2] = (1 - lx.t) * ly.t;
         t.weight[3] = lx.t * ly.t;
+        if (clusters == 1) {
+            t.clusters[0] = 0;
+            t.num_clusters = 1;
+            return t;
+        }
         for (int j = 0; j < 4; ++j) {
             const int c = cluster[t.texel[j]];
             if (std::find(t.clusters, t.clusters + t.num_clusters, c) ==
@@ -173,10 +182,12 @@ struct FactorMaterial::Impl {
         alignas(32) float b[kMaxComponents];
         float weight_sum = 0;
         for (int i = 0; i < d.kp; i += kLanes) store(b + i, Lanes{});
+        const bool one_cluster = clusters == 1;
         for (int j = 0; j < 4; ++j) {
-            if (cluster[t.texel[j]] != cluster_id || t.weight[j] == 0) continue;
+            if (!one_cluster && cluster[t.texel[j]] != cluster_id) continue;
             weight_sum += t.weight[j];
-            const float* row = d.b.data() + int64_t(local[t.texel[j]]) * d.kp;
+            const int64_t texel = one_cluster ? t.texel[j] : local[t.texel[j]];
+            const float* row = d.b.data() + texel * d.kp;
             const Lanes w = Lanes{} + t.weight[j];
             for (int i = 0; i < d.kp; i += kLanes) store(b + i, load(b + i) + w * load(row + i));
         }
@@ -186,6 +197,39 @@ struct FactorMaterial::Impl {
             for (int i = 0; i < d.kp; i += kLanes) sum += load(a + i) * load(b + i);
             out[ch] += horizontal_sum(sum) + weight_sum * mean[ch];
         }
+    }
+
+    // The common case of one view group and one texel cluster (fmf): one block per plane, so
+    // the spatial accumulation is shared by all channels of a plane and needs no cluster checks.
+    bool single_block() const { return groups == 1 && clusters == 1; }
+
+    // Value of one query given the blocks' angular accumulations (acc: stride floats per plane,
+    // mean: 3 per plane).
+    Rgb single_block_value(const Uv& uv, int width, int height, const float* acc, int stride,
+                           const float* mean) const {
+        const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
+        const int64_t r0 = int64_t(ly.i0) * width, r1 = int64_t(ly.i1) * width;
+        const int64_t t00 = r0 + lx.i0, t10 = r0 + lx.i1, t01 = r1 + lx.i0, t11 = r1 + lx.i1;
+        const Lanes w00 = Lanes{} + (1 - lx.t) * (1 - ly.t), w10 = Lanes{} + lx.t * (1 - ly.t);
+        const Lanes w01 = Lanes{} + (1 - lx.t) * ly.t, w11 = Lanes{} + lx.t * ly.t;
+        float out[3] = {0, 0, 0};
+        for (int p = 0; p < planes; ++p) {
+            const BlockData& d = blocks[p];
+            const float* b00 = d.b.data() + t00 * d.kp;
+            const float* b10 = d.b.data() + t10 * d.kp;
+            const float* b01 = d.b.data() + t01 * d.kp;
+            const float* b11 = d.b.data() + t11 * d.kp;
+            const float* a = acc + p * stride;
+            Lanes sum[3] = {};
+            for (int i = 0; i < d.kp; i += kLanes) {
+                const Lanes b = w00 * load(b00 + i) + w10 * load(b10 + i) + w01 * load(b01 + i) +
+                                w11 * load(b11 + i);
+                for (int ch = 0; ch < channels; ++ch) sum[ch] += load(a + ch * d.kp + i) * b;
+            }
+            for (int ch = 0; ch < channels; ++ch)
+                out[p + ch] = horizontal_sum(sum[ch]) + mean[3 * p + ch];
+        }
+        return finish(out);
     }
 
     Rgb finish(const float* planes_out) const {
@@ -229,11 +273,17 @@ int FactorMaterial::total_components() const {
 Rgb FactorMaterial::eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const {
     const Impl& m = *m_impl;
     const AngularWeights vw = m.views.weights(wo), lw = m.lights.weights(wi);
+    alignas(32) float acc[3 * kMaxComponents];
+    float mean[9];
+    if (m.single_block()) {
+        const int stride = m.channels * m.max_kp;
+        for (int p = 0; p < m.planes; ++p)
+            m.angular(m.blocks[p], 0, vw, lw, acc + p * stride, mean + 3 * p);
+        return m.single_block_value(uv, m_model.width, m_model.height, acc, stride, mean);
+    }
     const Impl::Texels t = m.texels(uv, m_model.width, m_model.height);
     int groups[3];
     const int num_groups = Impl::distinct_groups(m, vw, groups);
-    alignas(32) float acc[3 * kMaxComponents];
-    float mean[3];
     float out[3] = {0, 0, 0};
     for (int p = 0; p < m.planes; ++p)
         for (int gi = 0; gi < num_groups; ++gi)
@@ -266,6 +316,17 @@ void FactorMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> o
             last_wi = query.wi;
             last_wo = query.wo;
             ++current;
+        }
+        if (m.single_block()) {
+            if (stamp[0] != current) {
+                for (int p = 0; p < m.planes; ++p)
+                    m.angular(m.blocks[p], 0, vw, lw, cache.data() + p * stride,
+                              cache_mean.data() + 3 * p);
+                stamp[0] = current;
+            }
+            out[q] = m.single_block_value(query.uv, m_model.width, m_model.height, cache.data(),
+                                          stride, cache_mean.data());
+            continue;
         }
         const Impl::Texels t = m.texels(query.uv, m_model.width, m_model.height);
         int groups[3];

@@ -63,6 +63,31 @@ std::vector<ParamInfo> quantization_params() {
         {"quantize", "f16", "factor storage: f32, f16 or u8 (8 bits with per-component scale)"}};
 }
 
+std::vector<int> allocate_components(const std::vector<const Svd*>& planes, int components) {
+    std::vector<std::pair<float, int>> all;  // (sigma, plane)
+    for (size_t p = 0; p < planes.size(); ++p)
+        for (int k = 0; k < planes[p]->sigma.size(); ++k)
+            if (planes[p]->sigma[k] > 0) all.emplace_back(planes[p]->sigma[k], static_cast<int>(p));
+    std::stable_sort(all.begin(), all.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::vector<int> keep(planes.size(), 0);
+    const size_t n = std::min<size_t>(std::max(components, 0), all.size());
+    for (size_t i = 0; i < n; ++i) ++keep[all[i].second];
+    return keep;
+}
+
+Block make_block(const Svd& svd, int plane, int group, int cluster, int keep) {
+    Block block;
+    block.plane = plane;
+    block.group = group;
+    block.cluster = cluster;
+    block.mean = svd.mean;
+    block.a = svd.u.leftCols(keep);
+    block.b = svd.v.leftCols(keep) * svd.sigma.head(keep).asDiagonal();
+    block.energy.assign(svd.sigma.data(), svd.sigma.data() + keep);
+    return block;
+}
+
 // ---- colour ----------------------------------------------------------------------------------
 
 const std::array<float, 9>& ColourHandling::decorrelation() {
@@ -291,6 +316,7 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     h["height"] = model.height;
     h["views"] = directions_json(model.sampling.views);
     h["lights"] = directions_json(model.sampling.lights);
+    h["hdr"] = model.hdr;
     h["raw_bytes_8bit"] = int64_t(model.width) * model.height * model.sampling.num_images() * 3;
     nlohmann::json m;
     m["colour"] = to_string(model.colour.basis);
@@ -364,6 +390,7 @@ Model from_package(const Package& package) {
             fail("bad extent {}×{}", model.width, model.height);
         model.sampling.views = directions_from_json(h.at("views"));
         model.sampling.lights = directions_from_json(h.at("lights"));
+        model.hdr = h.value("hdr", false);
         const auto& m = h.at("model");
         model.colour.basis = parse_colour_basis(m.at("colour").get<std::string>());
         model.colour.log = m.at("log").get<bool>();

@@ -86,6 +86,7 @@ struct Block {
 struct Model {
     int width = 0, height = 0;
     Sampling sampling;
+    bool hdr = false;  ///< the source's values may exceed 1 (recorded in the package header)
     ColourHandling colour;
     /// View indices of each group; every view is in exactly one group.
     std::vector<std::vector<int>> groups;
@@ -170,6 +171,14 @@ class SourceRows final : public RowBatches {
     std::vector<int> m_group_of_view, m_slot_of_view;
     std::vector<int64_t> m_group_rows;
 };
+
+/// Components to keep of each plane's SVD when `components` are shared by all planes: the
+/// largest singular values over all planes win (the planes are orthonormal or independent, so a
+/// squared error in any plane is the same squared error overall). Zero singular values are not
+/// kept.
+std::vector<int> allocate_components(const std::vector<const Svd*>& planes, int components);
+/// The block of the first `keep` components of `svd`: a = U, b = V·S, energy = S, its mean.
+Block make_block(const Svd& svd, int plane, int group, int cluster, int keep);
 
 /// The parameters every factorization codec shares: quantize (f32|f16|u8), zstd level is a
 /// package write option instead. Appends their ParamInfo.

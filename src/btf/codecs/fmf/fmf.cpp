@@ -77,6 +77,7 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
     model.width = source.width();
     model.height = source.height();
     model.sampling = source.sampling();
+    model.hdr = source.info().hdr;
     model.colour = options.colour;
     model.groups.resize(1);
     model.groups[0].resize(source.num_views());
@@ -92,32 +93,16 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
     std::vector<factor::Svd> planes = factor::randomized_svd(rows, svd, progress);
 
     // Components per plane: all of them, or for decorrelated planes the C largest singular values
-    // over the three planes (the planes are orthonormal, so this minimizes the RGB error).
+    // over the three planes (003 §5.1).
     std::vector<int> keep(planes.size());
     for (size_t p = 0; p < planes.size(); ++p) keep[p] = static_cast<int>(planes[p].sigma.size());
     if (options.colour.basis == factor::ColourBasis::kDecorrelated) {
-        std::fill(keep.begin(), keep.end(), 0);
-        for (int c = 0; c < options.components; ++c) {
-            int best = -1;
-            for (size_t p = 0; p < planes.size(); ++p)
-                if (keep[p] < planes[p].sigma.size() &&
-                    (best < 0 || planes[p].sigma[keep[p]] > planes[best].sigma[keep[best]]))
-                    best = static_cast<int>(p);
-            if (best < 0) break;
-            ++keep[best];
-        }
+        std::vector<const factor::Svd*> pointers;
+        for (const factor::Svd& svd : planes) pointers.push_back(&svd);
+        keep = factor::allocate_components(pointers, options.components);
     }
-    for (size_t p = 0; p < planes.size(); ++p) {
-        factor::Svd& s = planes[p];
-        factor::Block block;
-        block.plane = static_cast<int>(p);
-        const int k = keep[p];
-        block.a = s.u.leftCols(k);
-        block.b = s.v.leftCols(k) * s.sigma.head(k).asDiagonal();
-        block.energy.assign(s.sigma.data(), s.sigma.data() + k);
-        block.mean = std::move(s.mean);
-        model.blocks.push_back(std::move(block));
-    }
+    for (size_t p = 0; p < planes.size(); ++p)
+        model.blocks.push_back(factor::make_block(planes[p], static_cast<int>(p), 0, 0, keep[p]));
     model.validate("fmf");
     return model;
 }

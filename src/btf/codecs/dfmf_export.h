@@ -1,0 +1,47 @@
+#pragma once
+/// Writing any BTF as a Bonn UBO2014 DFMF file (`!DFMF08FC`) through the fmf codec's streaming
+/// factorization, so that sources of any size can be exported (the exact in-memory SVD of
+/// ubo2014::factorize is limited to small sources).
+///
+/// DFMF holds one truncated SVD per colour channel with rows view·nL + light and columns
+/// y·W + x. An fmf model with one group of all views, one cluster, no row means and three planes
+/// (colour model 0: R, G, B; colour model 11: log Y, U/Y, V/Y) is exactly that: per plane,
+/// U = a (rows reordered to view order), S·V = b, S = the components' energies. fmf keeps the
+/// same number of components in each of these planes (fewer only where a plane's rank is
+/// smaller); DFMF stores a count per channel, so either way is written as it is.
+
+#include <cstdint>
+#include <filesystem>
+
+#include "btf/codecs/factor/model.h"
+#include "btf/io/source.h"
+#include "btf/io/ubo2014.h"
+#include "btf/util/progress.h"
+
+namespace btf {
+
+struct DfmfExportOptions {
+    /// Components per colour channel (at most min(views × lights, texels) are kept).
+    int components = 16;
+    /// ubo2014::kColorModelRgb (0) or ubo2014::kColorModelLogYUV (11).
+    int32_t color_model = ubo2014::kColorModelLogYUV;
+    int scalar_size = 4;  ///< 2 (half) or 4 (float32) in the file
+    ubo2014::Meta meta;   ///< written as given (cosine_flag must be false: fmf sees raw values)
+    uint64_t seed = 1;    ///< of the randomized SVD
+};
+
+/// The DFMF factorization equal to `model`. Throws btf::Error naming `what` when the model is
+/// not DFMF-shaped (more than one view group or texel cluster, row means, log colour, a colour
+/// basis other than per-channel or model 11).
+ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
+                               const ubo2014::Meta& meta, const std::string& what);
+
+/// fmf::factorize (no mean subtraction) then to_dfmf().
+ubo2014::Factorization factorize_dfmf(const BtfSource& source, const DfmfExportOptions& options,
+                                      Progress& progress = Progress::none());
+
+/// factorize_dfmf() then ubo2014::write_dfmf() (atomic).
+void export_dfmf(const std::filesystem::path& path, const BtfSource& source,
+                 const DfmfExportOptions& options, Progress& progress = Progress::none());
+
+}  // namespace btf

@@ -1,0 +1,121 @@
+#include "btf/codecs/dfmf_export.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "btf/codecs/fmf/fmf.h"
+#include "btf/io/function_source.h"
+#include "btf/testing/support.h"
+
+namespace btf {
+namespace {
+
+using testing::HasSubstr;
+
+Sampling small_sampling() {
+    const DirectionSet views("views", {{0, 0},
+                                       {radians(30), 0},
+                                       {radians(30), radians(120)},
+                                       {radians(30), radians(240)},
+                                       {radians(60), radians(60)}});
+    const DirectionSet lights("lights", {{0, 0},
+                                         {radians(45), radians(90)},
+                                         {radians(45), radians(200)},
+                                         {radians(70), radians(10)}});
+    return {views, lights};
+}
+
+// Texel albedo × angular factor with a fixed colour: rank 1 in RGB, rank ≤ 2 in (log Y, U/Y,
+// V/Y), so a few components per channel reproduce it to float precision.
+FunctionSource rank_one_source() {
+    return FunctionSource(small_sampling(), 9, 7, [](int v, int l, int x, int y) {
+        const float a = 0.2f + 0.05f * x + 0.03f * y, g = 0.5f + 0.1f * v + 0.07f * l;
+        return Rgb{a * g, 0.8f * a * g, 0.5f * a * g};
+    });
+}
+
+TEST(DfmfExport, WritesAFileThatReadsBackAsTheSource) {
+    const FunctionSource source = rank_one_source();
+    const test::TempFolder dir;
+    for (int32_t model : {ubo2014::kColorModelRgb, ubo2014::kColorModelLogYUV}) {
+        SCOPED_TRACE(model);
+        DfmfExportOptions options;
+        options.components = 3;
+        options.color_model = model;
+        const auto path = dir.path() / ("m" + std::to_string(model) + ".btf");
+        export_dfmf(path, source, options);
+        const auto f = ubo2014::read(path);
+        EXPECT_EQ(f->body, ubo2014::Body::kDfmf);
+        EXPECT_EQ(f->color_model, model);
+        ASSERT_EQ(f->factors.size(), 3u);
+        for (const auto& factor : f->factors) EXPECT_EQ(factor.components(), 3);
+        double max_error = 0;
+        for (int v = 0; v < source.num_views(); ++v)
+            for (int l = 0; l < source.num_lights(); ++l)
+                for (int y = 0; y < 7; ++y)
+                    for (int x = 0; x < 9; ++x) {
+                        const Rgb a = source.value(v, l, x, y), b = f->sample(x, y, v, l);
+                        max_error =
+                            std::max({max_error, double(std::abs(a.r - b.r)),
+                                      double(std::abs(a.g - b.g)), double(std::abs(a.b - b.b))});
+                    }
+        EXPECT_LT(max_error, 1e-4);
+    }
+}
+
+TEST(DfmfExport, RowsFollowTheViewOrderWhateverTheGroupOrder) {
+    const FunctionSource source(small_sampling(), 5, 4, [](int v, int l, int x, int y) {
+        return Rgb{0.1f + 0.1f * v + 0.02f * x, 0.3f + 0.05f * l * y, 0.2f + 0.01f * v * l};
+    });
+    fmf::Options options;
+    options.components = 6;
+    options.colour.basis = factor::ColourBasis::kPerChannel;
+    options.quantization = factor::Quantization::kF32;
+    factor::Model model = fmf::factorize(source, options);
+    // Put the views in the group in reverse order, moving their rows of a along.
+    const int nv = source.num_views(), nl = source.num_lights();
+    std::reverse(model.groups[0].begin(), model.groups[0].end());
+    for (factor::Block& block : model.blocks) {
+        factor::Matrix a = block.a;
+        for (int slot = 0; slot < nv; ++slot)
+            a.middleRows(int64_t(slot) * nl, nl) =
+                block.a.middleRows(int64_t(nv - 1 - slot) * nl, nl);
+        block.a = a;
+    }
+    const factor::FactorMaterial material(model);
+    const ubo2014::Factorization f = to_dfmf(model, 4, {}, "reversed");
+    for (int v = 0; v < nv; ++v)
+        for (int l = 0; l < nl; ++l)
+            for (int y = 0; y < 4; ++y)
+                for (int x = 0; x < 5; ++x) {
+                    const Rgb a = material.eval_sample(x, y, v, l), b = f.sample(x, y, v, l);
+                    EXPECT_NEAR(a.r, b.r, 1e-5);
+                    EXPECT_NEAR(a.g, b.g, 1e-5);
+                    EXPECT_NEAR(a.b, b.b, 1e-5);
+                }
+}
+
+TEST(DfmfExport, RefusesModelsDfmfCannotHold) {
+    const FunctionSource source = rank_one_source();
+    fmf::Options options;
+    options.components = 2;
+    options.colour.basis = factor::ColourBasis::kPerChannel;
+    options.subtract_mean = true;
+    EXPECT_THAT(test::error_of([&] { to_dfmf(fmf::factorize(source, options), 4, {}, "x"); }),
+                HasSubstr("x: channel 0 has row means, which DFMF cannot hold"));
+    options.subtract_mean = false;
+    options.colour.basis = factor::ColourBasis::kDecorrelated;
+    EXPECT_THAT(test::error_of([&] { to_dfmf(fmf::factorize(source, options), 4, {}, "x"); }),
+                HasSubstr("x: colour handling 'decorrelated' has no DFMF colour model"));
+
+    DfmfExportOptions bad;
+    bad.color_model = 3;
+    EXPECT_THAT(test::error_of([&] { factorize_dfmf(source, bad); }),
+                HasSubstr("cannot factorize into colour model 3"));
+}
+
+}  // namespace
+}  // namespace btf

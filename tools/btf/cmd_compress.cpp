@@ -1,0 +1,102 @@
+// btf compress IN -o OUT.btfpkg --codec NAME [-p key=value ...]: encode a BTF into a package and
+// say what it cost (size, ratio) and what it lost (RMSE over every sample).
+
+#include <chrono>
+#include <cstdio>
+#include <optional>
+
+#include "btf/codecs/codec.h"
+#include "btf/codecs/material_source.h"
+#include "btf/io/package.h"
+#include "btf/util/error.h"
+#include "cli.h"
+
+namespace btf::cli {
+
+Command register_compress(CLI::App& app, GlobalOptions& global) {
+    struct Args {
+        std::string input, output, views, codec = "fmf", quantize;
+        OpenOptions open;
+        int components = 0;
+        int zstd = PackageWriteOptions{}.zstd_level;
+        std::vector<std::string> params;
+        bool no_error = false;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* cmd = app.add_subcommand(
+        "compress",
+        "Compress a BTF into a btfkit package (.btfpkg) with a codec (`btf codecs` lists them), "
+        "then report size, ratio and the RMSE over every sample");
+    cmd->add_option("input", args->input,
+                    "BTF file or folder (any format btfkit reads, or a package to re-encode)")
+        ->required();
+    cmd->add_option("-o,--output", args->output, "output package (*.btfpkg)")->required();
+    cmd->add_option("--codec", args->codec, "codec name (`btf codecs`)");
+    auto* components = cmd->add_option("--components", args->components,
+                                       "components to keep (the codec parameter 'components')")
+                           ->check(CLI::Range(1, 1 << 20));
+    auto* quantize = cmd->add_option("--quantize", args->quantize,
+                                     "factor storage (the codec parameter 'quantize')")
+                         ->check(CLI::IsMember({"f32", "f16", "u8"}));
+    cmd->add_option("--zstd", args->zstd, "zstd level of the package sections (0 = store raw)")
+        ->check(CLI::Range(0, 22));
+    cmd->add_option("-p,--param", args->params,
+                    "codec parameter key=value (repeatable; `btf codecs` lists them)");
+    cmd->add_flag("--no-error", args->no_error,
+                  "skip measuring the RMSE (it decodes every sample and reads the input again)");
+    add_open_options(*cmd, args->open, args->views);
+
+    return {cmd, [args, &global, components, quantize] {
+                // Everything that can be checked without the input is checked first: opening and
+                // encoding a large BTF takes long.
+                if (output_kind(args->output) != OutputKind::kPackage)
+                    fail("{}: compress writes a btfkit package: name the output *.btfpkg",
+                         args->output);
+                const Codec& codec = find_codec(args->codec);
+                Params params = Params::parse(args->params);
+                auto shortcut = [&](const char* key, const std::string& value, const char* option) {
+                    if (params.has(key))
+                        fail("{} and -p {}=… both set '{}': give it once", option, key, key);
+                    params.set(key, value);
+                };
+                if (components->count())
+                    shortcut("components", std::to_string(args->components), "--components");
+                if (quantize->count()) shortcut("quantize", args->quantize, "--quantize");
+                {
+                    // The codec's own message for a parameter it does not know.
+                    const Params names(params.values());
+                    for (const ParamInfo& info : codec.params())
+                        names.get_string(info.name, info.default_value);
+                    names.check_all_used(codec.name(), codec.params());
+                }
+
+                const auto source = open_input(args->input, args->open, args->views);
+                Progress progress = make_progress(global);
+                const auto start = std::chrono::steady_clock::now();
+                Package package = codec.encode(*source, params, progress);
+                PackageWriteOptions write_options;
+                write_options.zstd_level = args->zstd;
+                write_package(args->output, package, write_options, progress);
+                const double seconds =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+                std::optional<double> rmse;
+                if (!args->no_error) {
+                    const std::unique_ptr<Material> material = open_material(package);
+                    rmse = sample_rmse(*source, *material, progress);
+                }
+                const double raw_8bit =
+                    double(source->num_texels()) * double(source->sampling().num_images()) * 3.0;
+                const double bytes = double(package.file_bytes);
+                std::string line = fmt::format("{}: {}, ratio {} (vs 8-bit RGB raw)", args->output,
+                                               human_bytes(bytes), format_ratio(raw_8bit / bytes));
+                if (rmse) line += fmt::format(", RMSE {:.3g}", *rmse);
+                line += ", encoded in " +
+                        (seconds < 1 ? fmt::format("{:.2f}", seconds)
+                                     : fmt::format("{:.1f}", seconds)) +
+                        " s";
+                std::printf("%s\n", line.c_str());
+            }};
+}
+
+}  // namespace btf::cli
