@@ -367,7 +367,8 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
         for (int p = 0; p < planes; ++p) cluster_svds.push_back(&svds[p * clusters + c]);
         const std::vector<int> keep = factor::allocate_components(cluster_svds, options.components);
         for (int p = 0; p < planes; ++p)
-            model.blocks[model.block_index(p, 0, c)] = factor::make_block(*cluster_svds[p], p, 0, c, keep[p]);
+            model.blocks[model.block_index(p, 0, c)] =
+                factor::make_block(*cluster_svds[p], p, 0, c, keep[p]);
     }
     model.validate(std::string(kName));
     return model;

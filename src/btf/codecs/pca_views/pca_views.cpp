@@ -249,7 +249,8 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
         for (int p = 0; p < planes; ++p) group_svds.push_back(&svds[rows.matrix(p, g)]);
         const std::vector<int> keep = factor::allocate_components(group_svds, options.components);
         for (int p = 0; p < planes; ++p)
-            model.blocks[model.block_index(p, g, 0)] = factor::make_block(*group_svds[p], p, g, 0, keep[p]);
+            model.blocks[model.block_index(p, g, 0)] =
+                factor::make_block(*group_svds[p], p, g, 0, keep[p]);
     }
     model.validate(std::string(kName));
     return model;
