@@ -498,6 +498,20 @@ Model from_package(const Package& package) {
     }
 }
 
+// ---- codec base ----------------------------------------------------------------------------
+
+Package FactorCodec::encode(const BtfSource& source, const Params& params,
+                            Progress& progress) const {
+    const Result result = factorize(source, params, progress);
+    return to_package(result.model, name(), result.params, result.quantization);
+}
+
+std::unique_ptr<Material> FactorCodec::open(const Package& package) const {
+    if (package.codec() != name())
+        fail("package of codec '{}' opened as {}", package.codec(), name());
+    return std::make_unique<FactorMaterial>(from_package(package));
+}
+
 // ---- source rows ----------------------------------------------------------------------------
 
 SourceRows::SourceRows(const BtfSource& source, ColourHandling colour,

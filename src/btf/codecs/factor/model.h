@@ -180,6 +180,25 @@ std::vector<int> allocate_components(const std::vector<const Svd*>& planes, int 
 /// The block of the first `keep` components of `svd`: a = U, b = V·S, energy = S, its mean.
 Block make_block(const Svd& svd, int plane, int group, int cluster, int keep);
 
+/// Base of the factorization codecs: encode() = factorize() then to_package(); open() checks the
+/// codec name and decodes the model into a FactorMaterial. A codec supplies name, description,
+/// params and factorize.
+class FactorCodec : public Codec {
+  public:
+    Package encode(const BtfSource& source, const Params& params, Progress& progress) const final;
+    std::unique_ptr<Material> open(const Package& package) const final;
+
+  protected:
+    struct Result {
+        Model model;
+        nlohmann::json params;  ///< every parameter as used, defaults included
+        Quantization quantization = Quantization::kF16;
+    };
+    /// Reads `params` (reporting unknown ones) and factorizes `source`.
+    virtual Result factorize(const BtfSource& source, const Params& params,
+                             Progress& progress) const = 0;
+};
+
 /// The parameters every factorization codec shares: quantize (f32|f16|u8), zstd level is a
 /// package write option instead. Appends their ParamInfo.
 std::vector<ParamInfo> quantization_params();

@@ -111,7 +111,7 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
 
 namespace {
 
-class FmfCodec final : public Codec {
+class FmfCodec final : public factor::FactorCodec {
   public:
     std::string_view name() const override { return "fmf"; }
     std::string_view description() const override {
@@ -119,25 +119,23 @@ class FmfCodec final : public Codec {
     }
     std::vector<ParamInfo> params() const override { return fmf::parameters(); }
 
-    Package encode(const BtfSource& source, const Params& params,
-                   Progress& progress) const override {
+  protected:
+    Result factorize(const BtfSource& source, const Params& params,
+                     Progress& progress) const override {
         const fmf::Options options = fmf::parse_options(params);
-        const factor::Model model = fmf::factorize(source, options, progress);
-        nlohmann::json used = nlohmann::json::object();
-        used["components"] = options.components;
-        used["colour"] = factor::to_string(options.colour.basis);
-        used["mean"] = options.subtract_mean;
-        used["log"] = options.colour.log;
-        used["log-eps"] = options.colour.log_eps;
-        used["oversampling"] = options.oversampling;
-        used["power-iterations"] = options.power_iterations;
-        used["seed"] = options.seed;
-        used["quantize"] = factor::to_string(options.quantization);
-        return factor::to_package(model, name(), used, options.quantization);
-    }
-
-    std::unique_ptr<Material> open(const Package& package) const override {
-        return std::make_unique<factor::FactorMaterial>(factor::from_package(package));
+        Result result;
+        result.model = fmf::factorize(source, options, progress);
+        result.params = {{"components", options.components},
+                         {"colour", factor::to_string(options.colour.basis)},
+                         {"mean", options.subtract_mean},
+                         {"log", options.colour.log},
+                         {"log-eps", options.colour.log_eps},
+                         {"oversampling", options.oversampling},
+                         {"power-iterations", options.power_iterations},
+                         {"seed", options.seed},
+                         {"quantize", factor::to_string(options.quantization)}};
+        result.quantization = options.quantization;
+        return result;
     }
 };
 

@@ -121,7 +121,7 @@ void assign(const factor::Matrix& points, const Centres& centres, const std::vec
     });
 }
 
-class LpcaCodec final : public Codec {
+class LpcaCodec final : public factor::FactorCodec {
   public:
     std::string_view name() const override { return kName; }
     std::string_view description() const override {
@@ -129,17 +129,12 @@ class LpcaCodec final : public Codec {
     }
     std::vector<ParamInfo> params() const override { return param_infos(); }
 
-    Package encode(const BtfSource& source, const Params& params,
-                   Progress& progress) const override {
+  protected:
+    Result factorize(const BtfSource& source, const Params& params,
+                     Progress& progress) const override {
         const Options options = parse_options(params);
-        const factor::Model model = factorize(source, options, progress);
-        return factor::to_package(model, kName, options_json(options), options.quantization);
-    }
-
-    std::unique_ptr<Material> open(const Package& package) const override {
-        if (package.codec() != kName)
-            fail("package of codec '{}' opened as {}", package.codec(), kName);
-        return std::make_unique<factor::FactorMaterial>(factor::from_package(package));
+        return {lpca::factorize(source, options, progress), options_json(options),
+                options.quantization};
     }
 };
 
