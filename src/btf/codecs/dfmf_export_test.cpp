@@ -8,6 +8,7 @@
 
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/io/function_source.h"
+#include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
 namespace btf {
@@ -15,23 +16,10 @@ namespace {
 
 using testing::HasSubstr;
 
-Sampling small_sampling() {
-    const DirectionSet views("views", {{0, 0},
-                                       {radians(30), 0},
-                                       {radians(30), radians(120)},
-                                       {radians(30), radians(240)},
-                                       {radians(60), radians(60)}});
-    const DirectionSet lights("lights", {{0, 0},
-                                         {radians(45), radians(90)},
-                                         {radians(45), radians(200)},
-                                         {radians(70), radians(10)}});
-    return {views, lights};
-}
-
 // Texel albedo × angular factor with a fixed colour: rank 1 in RGB, rank ≤ 2 in (log Y, U/Y,
 // V/Y), so a few components per channel reproduce it to float precision.
 FunctionSource rank_one_source() {
-    return FunctionSource(small_sampling(), 9, 7, [](int v, int l, int x, int y) {
+    return FunctionSource(test::five_views_four_lights(), 9, 7, [](int v, int l, int x, int y) {
         const float a = 0.2f + 0.05f * x + 0.03f * y, g = 0.5f + 0.1f * v + 0.07f * l;
         return Rgb{a * g, 0.8f * a * g, 0.5f * a * g};
     });
@@ -67,9 +55,10 @@ TEST(DfmfExport, WritesAFileThatReadsBackAsTheSource) {
 }
 
 TEST(DfmfExport, RowsFollowTheViewOrderWhateverTheGroupOrder) {
-    const FunctionSource source(small_sampling(), 5, 4, [](int v, int l, int x, int y) {
-        return Rgb{0.1f + 0.1f * v + 0.02f * x, 0.3f + 0.05f * l * y, 0.2f + 0.01f * v * l};
-    });
+    const FunctionSource source(
+        test::five_views_four_lights(), 5, 4, [](int v, int l, int x, int y) {
+            return Rgb{0.1f + 0.1f * v + 0.02f * x, 0.3f + 0.05f * l * y, 0.2f + 0.01f * v * l};
+        });
     fmf::Options options;
     options.components = 6;
     options.colour.basis = factor::ColourBasis::kPerChannel;

@@ -8,25 +8,13 @@
 #include "btf/codecs/codec.h"
 #include "btf/io/function_source.h"
 #include "btf/io/package.h"
+#include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
 namespace btf {
 namespace {
 
 using testing::HasSubstr;
-
-Sampling small_sampling() {
-    const DirectionSet views("views", {{0, 0},
-                                       {radians(30), 0},
-                                       {radians(30), radians(120)},
-                                       {radians(30), radians(240)},
-                                       {radians(60), radians(60)}});
-    const DirectionSet lights("lights", {{0, 0},
-                                         {radians(45), radians(90)},
-                                         {radians(45), radians(200)},
-                                         {radians(70), radians(10)}});
-    return {views, lights};
-}
 
 // A distinct value for every (texel, view, light, channel).
 Rgb pattern(int x, int y, int view, int light) {
@@ -52,7 +40,7 @@ class PatternMaterial final : public Material {
 };
 
 TEST(MaterialSource, ImagesAreTheMaterialsSamples) {
-    const auto material = std::make_shared<PatternMaterial>(7, 5, small_sampling());
+    const auto material = std::make_shared<PatternMaterial>(7, 5, test::five_views_four_lights());
     const MaterialSource source(material, "test", "somewhere/m.btfpkg");
     EXPECT_EQ(source.width(), 7);
     EXPECT_EQ(source.height(), 5);
@@ -83,7 +71,7 @@ TEST(MaterialSource, ImagesAreTheMaterialsSamples) {
 }
 
 TEST(MaterialSource, RmseAgainstAKnownDifference) {
-    const Sampling s = small_sampling();
+    const Sampling s = test::five_views_four_lights();
     const PatternMaterial material(6, 4, s);
     const FunctionSource same(s, 6, 4,
                               [](int v, int l, int x, int y) { return pattern(x, y, v, l); });
@@ -103,7 +91,7 @@ TEST(MaterialSource, RmseAgainstAKnownDifference) {
 
 TEST(MaterialSource, DecodesAPackageFile) {
     // A rank-one BTF (texel albedo × angular factor) that fmf keeps almost exactly.
-    const Sampling s = small_sampling();
+    const Sampling s = test::five_views_four_lights();
     const FunctionSource source(s, 8, 6, [](int v, int l, int x, int y) {
         const float a = 0.2f + 0.05f * x + 0.03f * y, g = 0.5f + 0.1f * v + 0.07f * l;
         return Rgb{a * g, 0.8f * a * g, 0.5f * a * g};

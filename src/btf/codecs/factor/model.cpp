@@ -180,6 +180,26 @@ void Model::validate(const std::string& what) const {
     }
 }
 
+std::string source_name(const BtfSource& source) {
+    return source.info().path.empty() ? source.info().format : source.info().path.string();
+}
+
+Model model_for(const BtfSource& source, const ColourHandling& colour, std::string_view codec) {
+    check(source.num_views() > 0 && source.num_lights() > 0 && source.num_texels() > 0,
+          "{}: {}: empty BTF ({} views, {} lights, {}x{} texels)", source_name(source), codec,
+          source.num_views(), source.num_lights(), source.width(), source.height());
+    Model model;
+    model.width = source.width();
+    model.height = source.height();
+    model.sampling = source.sampling();
+    model.hdr = source.info().hdr;
+    model.colour = colour;
+    model.groups.resize(1);
+    model.groups[0].resize(source.num_views());
+    std::iota(model.groups[0].begin(), model.groups[0].end(), 0);
+    return model;
+}
+
 // ---- package ---------------------------------------------------------------------------------
 
 namespace {

@@ -107,6 +107,13 @@ struct Model {
     void validate(const std::string& what) const;
 };
 
+/// A model with the extent, sampling, HDR flag and colour handling of `source`, one group of all
+/// views and one cluster, without blocks. Throws btf::Error naming the source and `codec` when
+/// the source is empty.
+Model model_for(const BtfSource& source, const ColourHandling& colour, std::string_view codec);
+/// The name of a source in messages: its path, or its format for sources without one.
+std::string source_name(const BtfSource& source);
+
 /// Package header fields and sections for a model: "tables" (the views' and lights'
 /// AngularInterpolator tables, for viewers), "clusters" (texel clusters, when more than one),
 /// "means" (all row means), then one section per component ("b<block>.k<k>": a's column then

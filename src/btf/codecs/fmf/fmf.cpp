@@ -73,15 +73,7 @@ Options parse_options(const Params& params) {
 }
 
 factor::Model factorize(const BtfSource& source, const Options& options, Progress& progress) {
-    factor::Model model;
-    model.width = source.width();
-    model.height = source.height();
-    model.sampling = source.sampling();
-    model.hdr = source.info().hdr;
-    model.colour = options.colour;
-    model.groups.resize(1);
-    model.groups[0].resize(source.num_views());
-    std::iota(model.groups[0].begin(), model.groups[0].end(), 0);
+    factor::Model model = factor::model_for(source, options.colour, "fmf");
     const factor::SourceRows rows(source, options.colour, model.groups);
 
     factor::SvdOptions svd;

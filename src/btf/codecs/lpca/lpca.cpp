@@ -81,10 +81,6 @@ const std::vector<ParamInfo>& param_infos() {
     return infos;
 }
 
-std::string source_name(const BtfSource& source) {
-    return source.info().path.empty() ? source.info().format : source.info().path.string();
-}
-
 factor::SvdOptions svd_options(const Options& options, int rank) {
     factor::SvdOptions out;
     out.rank = rank;
@@ -286,7 +282,7 @@ ClusterRows::ClusterRows(const BtfSource& source, factor::ColourHandling colour,
     for (const std::vector<int32_t>& texels : m_texels)
         for (int32_t t : texels)
             check(t >= 0 && t < source.num_texels(), "{}: {}: texel {} outside the {}x{} texels",
-                  source_name(source), kName, t, source.width(), source.height());
+                  factor::source_name(source), kName, t, source.width(), source.height());
 }
 
 int ClusterRows::matrices() const {
@@ -327,16 +323,7 @@ void ClusterRows::read(int batch, std::vector<int64_t>& first,
 }
 
 factor::Model factorize(const BtfSource& source, const Options& options, Progress& progress) {
-    check(source.num_views() > 0 && source.num_lights() > 0 && source.num_texels() > 0,
-          "{}: {}: empty BTF ({} views, {} lights, {}x{} texels)", source_name(source), kName,
-          source.num_views(), source.num_lights(), source.width(), source.height());
-    factor::Model model;
-    model.width = source.width();
-    model.height = source.height();
-    model.sampling = source.sampling();
-    model.hdr = source.info().hdr;
-    model.colour = options.colour;
-    model.groups = {all_views(source)};
+    factor::Model model = factor::model_for(source, options.colour, kName);
 
     std::vector<int32_t> label;
     {

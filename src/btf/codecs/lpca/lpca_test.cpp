@@ -12,31 +12,13 @@
 
 #include "btf/io/function_source.h"
 #include "btf/synth/synth.h"
+#include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
 namespace btf {
 namespace {
 
 using ::testing::HasSubstr;
-
-Sampling small_sampling(int views, int lights) {
-    const std::vector<int> view_index = {0, 1, 3, 5, 7, 10, 13, 19, 25, 31, 37, 45, 55, 70};
-    const std::vector<int> light_index = {0, 2, 4, 8, 12, 16, 22, 30, 40, 50, 60, 70};
-    const DirectionSet& ubo = DirectionSet::ubo81();
-    return {ubo.subset({view_index.begin(), view_index.begin() + views}, "views"),
-            ubo.subset({light_index.begin(), light_index.begin() + lights}, "lights")};
-}
-
-// A float in [0, 1) from integer coordinates (thread-safe, no state).
-float hash01(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
-    uint64_t h = 0x9E3779B97F4A7C15ull;
-    for (uint64_t v : {a, b, c, d}) {
-        h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
-        h *= 0xBF58476D1CE4E5B9ull;
-        h ^= h >> 31;
-    }
-    return static_cast<float>(h >> 40) * 0x1.0p-24f;
-}
 
 // `materials` distinct ABRDFs (random per view, light and channel) on an irregular texel map;
 // each texel scales its material's ABRDF by 1 ± 10 %: rank 1 per material after centring.
@@ -52,13 +34,14 @@ Mosaic mosaic(int materials, int size, int views, int lights) {
     m.materials = materials;
     m.material.resize(size * size);
     for (int t = 0; t < size * size; ++t)
-        m.material[t] = std::min(materials - 1, int(hash01(t, 7, 7, 7) * materials));
+        m.material[t] = std::min(materials - 1, int(test::hash01(t, 7, 7, 7) * materials));
     m.source = std::make_unique<FunctionSource>(
-        small_sampling(views, lights), size, size,
+        test::ubo_subset(views, lights), size, size,
         [size, material = m.material](int v, int l, int x, int y) {
             const int k = material[y * size + x];
-            const float s = 0.9f + 0.2f * hash01(x, y, 11, 0);
-            return Rgb{s * hash01(v, l, k, 0), s * hash01(v, l, k, 1), s * hash01(v, l, k, 2)};
+            const float s = 0.9f + 0.2f * test::hash01(x, y, 11, 0);
+            return Rgb{s * test::hash01(v, l, k, 0), s * test::hash01(v, l, k, 1),
+                       s * test::hash01(v, l, k, 2)};
         });
     return m;
 }
@@ -260,7 +243,7 @@ TEST(Lpca, OneClusterIsAGlobalPca) {
 }
 
 TEST(Lpca, MoreClustersLowerTheError) {
-    const auto source = cached(*synth::make("woven_fabric", 16, small_sampling(8, 8), 2));
+    const auto source = cached(*synth::make("woven_fabric", 16, test::ubo_subset(8, 8), 2));
     double previous = 1e30;
     for (int clusters : {1, 2, 4, 8}) {
         const lpca::Options options = lpca::parse_options(Params(

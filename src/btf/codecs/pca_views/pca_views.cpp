@@ -81,10 +81,6 @@ const std::vector<ParamInfo>& param_infos() {
     return infos;
 }
 
-std::string source_name(const BtfSource& source) {
-    return source.info().path.empty() ? source.info().format : source.info().path.string();
-}
-
 Vec3 unit(const Vec3& v) {
     const double n = length(v);
     return n > 0 ? v / n : v;
@@ -215,17 +211,8 @@ std::vector<std::vector<int>> group_views(const DirectionSet& views, int views_p
 }
 
 factor::Model factorize(const BtfSource& source, const Options& options, Progress& progress) {
-    check(source.num_views() > 0 && source.num_lights() > 0 && source.num_texels() > 0,
-          "{}: {}: empty BTF ({} views, {} lights, {}x{} texels)", source_name(source), kName,
-          source.num_views(), source.num_lights(), source.width(), source.height());
-    factor::Model model;
-    model.width = source.width();
-    model.height = source.height();
-    model.sampling = source.sampling();
-    model.hdr = source.info().hdr;
-    model.colour = options.colour;
+    factor::Model model = factor::model_for(source, options.colour, kName);
     model.groups = group_views(source.sampling().views, options.views_per_group);
-    model.clusters = 1;
 
     const factor::SourceRows rows(source, options.colour, model.groups);
     factor::SvdOptions svd_options;

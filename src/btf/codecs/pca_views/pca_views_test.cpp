@@ -12,6 +12,7 @@
 
 #include "btf/io/function_source.h"
 #include "btf/synth/synth.h"
+#include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
 namespace btf {
@@ -19,32 +20,13 @@ namespace {
 
 using ::testing::HasSubstr;
 
-Sampling small_sampling(int views, int lights) {
-    // Spread over the rings of the UBO set so that groups have real neighbours.
-    const std::vector<int> view_index = {0, 1, 3, 5, 7, 10, 13, 19, 25, 31, 37, 45, 55, 70};
-    const std::vector<int> light_index = {0, 2, 4, 8, 12, 16, 22, 30, 40, 50, 60, 70};
-    const DirectionSet& ubo = DirectionSet::ubo81();
-    return {ubo.subset({view_index.begin(), view_index.begin() + views}, "views"),
-            ubo.subset({light_index.begin(), light_index.begin() + lights}, "lights")};
-}
-
-// A float in [0, 1) from integer coordinates (thread-safe, no state).
-float hash01(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
-    uint64_t h = 0x9E3779B97F4A7C15ull;
-    for (uint64_t v : {a, b, c, d}) {
-        h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
-        h *= 0xBF58476D1CE4E5B9ull;
-        h ^= h >> 31;
-    }
-    return static_cast<float>(h >> 40) * 0x1.0p-24f;
-}
-
 // Values of full rank: every angular sample independent.
 FunctionSource random_source(int views, int lights, int size) {
-    return FunctionSource(
-        small_sampling(views, lights), size, size, [](int v, int l, int x, int y) {
-            return Rgb{hash01(v, l, x, y), hash01(v, l, x, y + 1000), hash01(v, l, x, y + 2000)};
-        });
+    return FunctionSource(test::ubo_subset(views, lights), size, size,
+                          [](int v, int l, int x, int y) {
+                              return Rgb{test::hash01(v, l, x, y), test::hash01(v, l, x, y + 1000),
+                                         test::hash01(v, l, x, y + 2000)};
+                          });
 }
 
 // A source with every image held in memory (a synthetic one renders each read).
@@ -62,7 +44,7 @@ std::unique_ptr<FunctionSource> cached(const BtfSource& source) {
 }
 
 std::unique_ptr<FunctionSource> synthetic(int views, int lights) {
-    return cached(*synth::make("knitted_wool", 16, small_sampling(views, lights), 3));
+    return cached(*synth::make("knitted_wool", 16, test::ubo_subset(views, lights), 3));
 }
 
 // Σ (decoded − source)² over every sample and channel, and Σ source².
