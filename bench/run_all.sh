@@ -10,3 +10,7 @@ echo; echo "## UBO2003 import (real view)"; "$build/ubo2003_import_bench" --benc
 echo; echo "## HDF5 write/read"; "$build/h5_speed"
 echo; echo "## synthesis"; "$build/synth_bench"
 echo; echo "## synthetic vs. real: rank-k relative RMSE"; "$build/synth_realism"
+echo; echo "## codecs: fmf accuracy against the exact SVD"; "$build/fmf_accuracy"
+echo; echo "## codecs: fmf compression speed (vs scikit-learn)"; "$build/fmf_speed"
+echo; echo "## codecs: evaluation throughput"; "$build/eval_bench"
+echo; echo "## codecs: rate–distortion"; "$build/rate_distortion"
