@@ -1,0 +1,112 @@
+#pragma once
+// Helpers shared by the codec benchmark programs (a header, so that the bench/*.cpp glob does not
+// turn it into a program of its own): an in-memory source, wall-clock timing and the process's
+// resident memory from /proc/self/status.
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "btf/io/source.h"
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace btf::bench {
+
+/// Seconds since construction (steady clock).
+class Stopwatch {
+  public:
+    Stopwatch() : m_start(std::chrono::steady_clock::now()) {}
+    double seconds() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    }
+
+  private:
+    std::chrono::steady_clock::time_point m_start;
+};
+
+/// A field of /proc/self/status in bytes ("VmRSS", "VmHWM"); 0 where it cannot be read.
+inline int64_t proc_status_bytes(const std::string& field) {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line))
+        if (line.rfind(field + ":", 0) == 0)
+            return std::stoll(line.substr(field.size() + 1)) * 1024;
+    return 0;
+}
+
+/// Resident memory now.
+inline int64_t current_rss() {
+    return proc_status_bytes("VmRSS");
+}
+/// Peak resident memory since the start or the last reset_peak_rss().
+inline int64_t peak_rss() {
+    return proc_status_bytes("VmHWM");
+}
+/// Resets the peak to the current resident memory (Linux: "5" into /proc/self/clear_refs), so
+/// that the peak of one phase of a program can be measured. False if the kernel refused.
+inline bool reset_peak_rss() {
+    std::ofstream out("/proc/self/clear_refs");
+    out << "5";
+    out.flush();
+    return static_cast<bool>(out);
+}
+
+inline double gib(int64_t bytes) {
+    return double(bytes) / double(int64_t(1) << 30);
+}
+inline double mib(int64_t bytes) {
+    return double(bytes) / double(int64_t(1) << 20);
+}
+
+/// Every image of a source held in memory as float RGB, so that codecs that read the source in
+/// several passes measure their own work rather than the source's (a synthetic source renders
+/// every image again on each read).
+class MemorySource final : public BtfSource {
+  public:
+    /// Reads all images of `source` (in parallel).
+    explicit MemorySource(const BtfSource& source)
+        : m_width(source.width()),
+          m_height(source.height()),
+          m_sampling(source.sampling()),
+          m_info(source.info()) {
+        m_info.note = "in memory: " + m_info.note;
+        const int64_t values = int64_t(m_width) * m_height * 3;
+        m_images.resize(m_sampling.num_images());
+        parallel_for(0, int64_t(m_images.size()), [&](int64_t i) {
+            Image image;
+            source.read_image(int(i / num_lights()), int(i % num_lights()), image);
+            m_images[i].assign(image.data(), image.data() + values);
+        });
+    }
+
+    int width() const override { return m_width; }
+    int height() const override { return m_height; }
+    const Sampling& sampling() const override { return m_sampling; }
+    const SourceInfo& info() const override { return m_info; }
+    void read_image(int view, int light, Image& out) const override {
+        if (view < 0 || view >= num_views() || light < 0 || light >= num_lights())
+            fail("memory source: no image (view {}, light {})", view, light);
+        out.reshape(m_width, m_height, 3);
+        const std::vector<float>& v = m_images[size_t(view) * num_lights() + light];
+        std::copy(v.begin(), v.end(), out.data());
+    }
+    /// The pixels of one image: width × height × 3 floats, row-major.
+    const float* pixels(int view, int light) const {
+        return m_images[size_t(view) * num_lights() + light].data();
+    }
+
+  private:
+    int m_width, m_height;
+    Sampling m_sampling;
+    SourceInfo m_info;
+    std::vector<std::vector<float>> m_images;
+};
+
+}  // namespace btf::bench
