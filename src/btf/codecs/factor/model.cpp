@@ -578,6 +578,20 @@ void SourceRows::read(int view, std::vector<int64_t>& first, std::vector<Matrix>
         thread_local Image image;
         m_source.read_image(view, static_cast<int>(light), image);
         const float* px = image.data();
+        if (channels == 3 && !m_colour.log) {
+            // Plain rgb: the planes are the pixels; de-interleave them directly (reading a
+            // source is otherwise dominated by the per-texel colour transform).
+            Matrix& rows = out[matrix(0, group)];
+            float* r = &rows(light * 3, 0);
+            float* g = &rows(light * 3 + 1, 0);
+            float* b = &rows(light * 3 + 2, 0);
+            for (int64_t t = 0; t < texels; ++t) {
+                r[t] = px[3 * t];
+                g[t] = px[3 * t + 1];
+                b[t] = px[3 * t + 2];
+            }
+            return;
+        }
         for (int64_t t = 0; t < texels; ++t) {
             const Rgb v = m_colour.forward({px[3 * t], px[3 * t + 1], px[3 * t + 2]});
             const float c[3] = {v.r, v.g, v.b};

@@ -16,8 +16,10 @@ namespace {
 
 // Column slice of the transposed products: fixed, so sums do not depend on the thread count.
 constexpr int64_t kColumnSlice = 2048;
-// Row chunk of the direct products.
-constexpr int64_t kRowChunk = 8;
+// Row chunk of the direct products: large enough that packing the right-hand factor (cols × l)
+// once per chunk costs little next to the product, small enough that a view's batch (nL · 3
+// rows) still splits over the cores.
+constexpr int64_t kRowChunk = 64;
 
 Matrix orthonormal_basis(const Matrix& y) {
     Eigen::HouseholderQR<Matrix> qr(y);
