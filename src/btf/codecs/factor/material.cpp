@@ -33,10 +33,14 @@ inline Lanes load(const float* p) {
 inline void store(float* p, Lanes v) {
     std::memcpy(p, &v, sizeof v);
 }
+typedef float HalfLanes __attribute__((vector_size(16)));
+// Pairwise: three dependent adds instead of seven.
 inline float horizontal_sum(Lanes v) {
-    float s = 0;
-    for (int i = 0; i < kLanes; ++i) s += v[i];
-    return s;
+    HalfLanes s =
+        __builtin_shufflevector(v, v, 0, 1, 2, 3) + __builtin_shufflevector(v, v, 4, 5, 6, 7);
+    s += __builtin_shufflevector(s, s, 2, 3, 0, 1);
+    s += __builtin_shufflevector(s, s, 1, 0, 3, 2);
+    return s[0];
 }
 
 int padded(int k) {
@@ -111,8 +115,11 @@ struct FactorMaterial::Impl {
     // the views of `group`, and mean[ch] likewise. acc must hold channels × kp floats.
     void angular(const BlockData& d, int group, const AngularWeights& vw, const AngularWeights& lw,
                  float* acc, float* mean) const {
-        const int width = channels * d.kp;  // one (view, light) pair's rows are contiguous
-        for (int i = 0; i < width; i += kLanes) store(acc + i, Lanes{});
+        // Gather the ≤ 9 (view, light) rows first, then sum them per vector: the accumulator
+        // stays in a register instead of going through memory once per pair.
+        const float* rows[9];
+        Lanes weights[9];
+        int n = 0;
         for (int ch = 0; ch < channels; ++ch) mean[ch] = 0;
         for (int v = 0; v < vw.count; ++v) {
             if (vw.weight[v] == 0 || group_of_view[vw.index[v]] != group) continue;
@@ -121,12 +128,16 @@ struct FactorMaterial::Impl {
                 const float w = vw.weight[v] * lw.weight[l];
                 if (w == 0) continue;
                 const int64_t row = (slot * nl + lw.index[l]) * channels;
-                const float* a = d.a.data() + row * d.kp;
-                const Lanes wl = Lanes{} + w;
-                for (int i = 0; i < width; i += kLanes)
-                    store(acc + i, load(acc + i) + wl * load(a + i));
+                rows[n] = d.a.data() + row * d.kp;
+                weights[n++] = Lanes{} + w;
                 for (int ch = 0; ch < channels; ++ch) mean[ch] += w * d.mean[row + ch];
             }
+        }
+        const int width = channels * d.kp;  // one (view, light) pair's rows are contiguous
+        for (int i = 0; i < width; i += kLanes) {
+            Lanes sum{};
+            for (int k = 0; k < n; ++k) sum += weights[k] * load(rows[k] + i);
+            store(acc + i, sum);
         }
     }
 
@@ -212,24 +223,34 @@ struct FactorMaterial::Impl {
         const int64_t t00 = r0 + lx.i0, t10 = r0 + lx.i1, t01 = r1 + lx.i0, t11 = r1 + lx.i1;
         const Lanes w00 = Lanes{} + (1 - lx.t) * (1 - ly.t), w10 = Lanes{} + lx.t * (1 - ly.t);
         const Lanes w01 = Lanes{} + (1 - lx.t) * ly.t, w11 = Lanes{} + lx.t * ly.t;
+        const Lanes w[4] = {w00, w10, w01, w11};
+        const int64_t t[4] = {t00, t10, t01, t11};
         float out[3] = {0, 0, 0};
         for (int p = 0; p < planes; ++p) {
-            const BlockData& d = blocks[p];
-            const float* b00 = d.b.data() + t00 * d.kp;
-            const float* b10 = d.b.data() + t10 * d.kp;
-            const float* b01 = d.b.data() + t01 * d.kp;
-            const float* b11 = d.b.data() + t11 * d.kp;
-            const float* a = acc + p * stride;
-            Lanes sum[3] = {};
-            for (int i = 0; i < d.kp; i += kLanes) {
-                const Lanes b = w00 * load(b00 + i) + w10 * load(b10 + i) + w01 * load(b01 + i) +
-                                w11 * load(b11 + i);
-                for (int ch = 0; ch < channels; ++ch) sum[ch] += load(a + ch * d.kp + i) * b;
-            }
-            for (int ch = 0; ch < channels; ++ch)
-                out[p + ch] = horizontal_sum(sum[ch]) + mean[3 * p + ch];
+            if (channels == 3)
+                plane_dot<3>(blocks[p], t, w, acc + p * stride, mean + 3 * p, out + p);
+            else
+                plane_dot<1>(blocks[p], t, w, acc + p * stride, mean + 3 * p, out + p);
         }
         return finish(out);
+    }
+
+    // Σ_ch: out[ch] = acc[ch] · (Σ_j w_j b(t_j)) + mean[ch]; CH is a constant so that the sums
+    // stay in registers.
+    template <int CH>
+    static void plane_dot(const BlockData& d, const int64_t* t, const Lanes* w, const float* a,
+                          const float* mean, float* out) {
+        const float* b0 = d.b.data() + t[0] * d.kp;
+        const float* b1 = d.b.data() + t[1] * d.kp;
+        const float* b2 = d.b.data() + t[2] * d.kp;
+        const float* b3 = d.b.data() + t[3] * d.kp;
+        Lanes sum[CH] = {};
+        for (int i = 0; i < d.kp; i += kLanes) {
+            const Lanes b = w[0] * load(b0 + i) + w[1] * load(b1 + i) + w[2] * load(b2 + i) +
+                            w[3] * load(b3 + i);
+            for (int ch = 0; ch < CH; ++ch) sum[ch] += load(a + ch * d.kp + i) * b;
+        }
+        for (int ch = 0; ch < CH; ++ch) out[ch] = horizontal_sum(sum[ch]) + mean[ch];
     }
 
     Rgb finish(const float* planes_out) const {
