@@ -4,10 +4,13 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <memory>
 #include <vector>
 
 #include "btf/core/direction.h"
+#include "btf/core/image.h"
 #include "btf/core/math.h"
+#include "btf/io/function_source.h"
 
 namespace btf::test {
 
@@ -44,6 +47,20 @@ inline float hash01(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
         h ^= h >> 31;
     }
     return static_cast<float>(h >> 40) * 0x1.0p-24f;
+}
+
+/// A copy of `source` with every image held in memory (a synthetic source renders each read).
+inline std::unique_ptr<FunctionSource> cached(const BtfSource& source) {
+    auto images = std::make_shared<std::vector<Image>>();
+    for (int v = 0; v < source.num_views(); ++v)
+        for (int l = 0; l < source.num_lights(); ++l) images->push_back(source.image(v, l));
+    const int lights = source.num_lights();
+    return std::make_unique<FunctionSource>(
+        source.sampling(), source.width(), source.height(),
+        [images, lights](int v, int l, int x, int y) {
+            return (*images)[size_t(v) * lights + l].rgb(x, y);
+        },
+        "cached");
 }
 
 }  // namespace btf::test

@@ -46,19 +46,6 @@ Mosaic mosaic(int materials, int size, int views, int lights) {
     return m;
 }
 
-std::unique_ptr<FunctionSource> cached(const BtfSource& source) {
-    auto images = std::make_shared<std::vector<Image>>();
-    for (int v = 0; v < source.num_views(); ++v)
-        for (int l = 0; l < source.num_lights(); ++l) images->push_back(source.image(v, l));
-    const int lights = source.num_lights();
-    return std::make_unique<FunctionSource>(
-        source.sampling(), source.width(), source.height(),
-        [images, lights](int v, int l, int x, int y) {
-            return (*images)[size_t(v) * lights + l].rgb(x, y);
-        },
-        "cached");
-}
-
 double relative_error(const Material& material, const BtfSource& source) {
     double error = 0, total = 0;
     for (int v = 0; v < source.num_views(); ++v)
@@ -243,7 +230,7 @@ TEST(Lpca, OneClusterIsAGlobalPca) {
 }
 
 TEST(Lpca, MoreClustersLowerTheError) {
-    const auto source = cached(*synth::make("woven_fabric", 16, test::ubo_subset(8, 8), 2));
+    const auto source = test::cached(*synth::make("woven_fabric", 16, test::ubo_subset(8, 8), 2));
     double previous = 1e30;
     for (int clusters : {1, 2, 4, 8}) {
         const lpca::Options options = lpca::parse_options(Params(

@@ -29,22 +29,8 @@ FunctionSource random_source(int views, int lights, int size) {
                           });
 }
 
-// A source with every image held in memory (a synthetic one renders each read).
-std::unique_ptr<FunctionSource> cached(const BtfSource& source) {
-    auto images = std::make_shared<std::vector<Image>>();
-    for (int v = 0; v < source.num_views(); ++v)
-        for (int l = 0; l < source.num_lights(); ++l) images->push_back(source.image(v, l));
-    const int lights = source.num_lights();
-    return std::make_unique<FunctionSource>(
-        source.sampling(), source.width(), source.height(),
-        [images, lights](int v, int l, int x, int y) {
-            return (*images)[size_t(v) * lights + l].rgb(x, y);
-        },
-        "cached");
-}
-
 std::unique_ptr<FunctionSource> synthetic(int views, int lights) {
-    return cached(*synth::make("knitted_wool", 16, test::ubo_subset(views, lights), 3));
+    return test::cached(*synth::make("knitted_wool", 16, test::ubo_subset(views, lights), 3));
 }
 
 // Σ (decoded − source)² over every sample and channel, and Σ source².
