@@ -19,6 +19,7 @@
 //                          [--queries 2097152] [--repeat 3]
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -68,26 +69,15 @@ void two_threads(size_t n, const std::function<void(size_t, size_t)>& fn) {
 int main(int argc, char** argv) {
     int size = 256, components = 32, repeat = 3, power_iterations = 0;
     size_t count = size_t(1) << 21;
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
-        if (arg == "--size" && has_value) {
-            size = std::atoi(argv[++i]);
-        } else if (arg == "--components" && has_value) {
-            components = std::atoi(argv[++i]);
-        } else if (arg == "--queries" && has_value) {
-            count = std::strtoull(argv[++i], nullptr, 10);
-        } else if (arg == "--repeat" && has_value) {
-            repeat = std::max(1, std::atoi(argv[++i]));
-        } else if (arg == "--power-iterations" && has_value) {
-            power_iterations = std::atoi(argv[++i]);
-        } else {
-            std::fprintf(stderr,
-                         "usage: eval_bench [--size N] [--components C] [--power-iterations Q] "
-                         "[--queries N] [--repeat R]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"Evaluation throughput of an fmf material (docs/benchmarks.md)"};
+    app.add_option("--size", size, "texels per side")->capture_default_str();
+    app.add_option("--components", components, "fmf components")->capture_default_str();
+    app.add_option("--power-iterations", power_iterations, "of the encode")->capture_default_str();
+    app.add_option("--queries", count, "random queries")->capture_default_str();
+    app.add_option("--repeat", repeat, "runs; the best counts")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    CLI11_PARSE(app, argc, argv);
     try {
         const DirectionSet& ubo = DirectionSet::ubo81();
         std::unique_ptr<Material> material;

@@ -11,6 +11,7 @@
 //   build/<dir>/fmf_accuracy [--size 64] [--preset woven_fabric] [--seed 1] [--components 8,32,64]
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
@@ -26,16 +27,6 @@
 namespace {
 
 using namespace btf;
-
-std::vector<int> parse_list(const std::string& text) {
-    std::vector<int> out;
-    for (size_t start = 0; start <= text.size();) {
-        const size_t comma = std::min(text.find(',', start), text.size());
-        if (comma > start) out.push_back(std::atoi(text.substr(start, comma - start).c_str()));
-        start = comma + 1;
-    }
-    return out;
-}
 
 // ‖M − A Bᵀ‖²_F in double, over fixed row chunks (deterministic for any thread count).
 double residual_energy(const factor::Matrix& m, const factor::Matrix& a, const factor::Matrix& b) {
@@ -59,24 +50,12 @@ int main(int argc, char** argv) {
     uint64_t seed = 1;
     std::string preset = "woven_fabric";
     std::vector<int> ranks = {8, 32, 64};
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
-        if (arg == "--size" && has_value) {
-            size = std::atoi(argv[++i]);
-        } else if (arg == "--seed" && has_value) {
-            seed = std::strtoull(argv[++i], nullptr, 10);
-        } else if (arg == "--preset" && has_value) {
-            preset = argv[++i];
-        } else if (arg == "--components" && has_value) {
-            ranks = parse_list(argv[++i]);
-        } else {
-            std::fprintf(stderr,
-                         "usage: fmf_accuracy [--size N] [--preset NAME] [--seed S] "
-                         "[--components 8,32,64]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"fmf's error against the exact truncated SVD (docs/benchmarks.md)"};
+    app.add_option("--size", size, "texels per side")->capture_default_str();
+    app.add_option("--seed", seed, "synthesis seed")->capture_default_str();
+    app.add_option("--preset", preset, "synthetic preset")->capture_default_str();
+    app.add_option("--components", ranks, "ranks to compare")->delimiter(',');
+    CLI11_PARSE(app, argc, argv);
     try {
         const DirectionSet& ubo = DirectionSet::ubo81();
         bench::Stopwatch clock;

@@ -22,6 +22,7 @@
 #include <fmt/format.h>
 #include <malloc.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -124,30 +125,17 @@ int main(int argc, char** argv) {
     int size = 256, components = 64;
     std::string preset = "woven_fabric", part = "ab", python = "/usr/bin/python3";
     fs::path dir = "/tmp", script = fs::path(BTF_SOURCE_DIR) / "bench" / "sklearn_rsvd.py";
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
-        if (arg == "--size" && has_value) {
-            size = std::atoi(argv[++i]);
-        } else if (arg == "--components" && has_value) {
-            components = std::atoi(argv[++i]);
-        } else if (arg == "--preset" && has_value) {
-            preset = argv[++i];
-        } else if (arg == "--dir" && has_value) {
-            dir = argv[++i];
-        } else if (arg == "--python" && has_value) {
-            python = argv[++i];
-        } else if (arg == "--script" && has_value) {
-            script = argv[++i];
-        } else if (arg == "--part" && has_value) {
-            part = argv[++i];
-        } else {
-            std::fprintf(stderr,
-                         "usage: fmf_speed [--size N] [--preset NAME] [--components C] [--dir DIR] "
-                         "[--python PATH] [--script PATH] [--part a|b|ab]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"fmf compression speed, and against scikit-learn (docs/benchmarks.md)"};
+    app.add_option("--size", size, "texels per side")->capture_default_str();
+    app.add_option("--components", components, "rank")->capture_default_str();
+    app.add_option("--preset", preset, "synthetic preset")->capture_default_str();
+    app.add_option("--dir", dir, "folder for the temporary files")->capture_default_str();
+    app.add_option("--python", python, "Python with scikit-learn")->capture_default_str();
+    app.add_option("--script", script, "the scikit-learn side")->capture_default_str();
+    app.add_option("--part", part, "a (end to end), b (in memory) or ab")
+        ->check(CLI::IsMember({"a", "b", "ab"}))
+        ->capture_default_str();
+    CLI11_PARSE(app, argc, argv);
     const std::string tag = fmt::format("btfkit_fmf_speed_{}", ::getpid());
     const fs::path h5_path = dir / (tag + ".h5"), npy_path = dir / (tag + ".npy"),
                    out_prefix = dir / (tag + "_sklearn");

@@ -18,6 +18,7 @@
 //                               [--thesis-preset knitted_wool|-]
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -189,16 +190,6 @@ Outcome run(const Dataset& d, const Codec& codec, const Config& config, bool srg
     return o;
 }
 
-std::vector<std::string> split(const std::string& text) {
-    std::vector<std::string> out;
-    for (size_t start = 0; start <= text.size();) {
-        const size_t comma = std::min(text.find(',', start), text.size());
-        if (comma > start) out.push_back(text.substr(start, comma - start));
-        start = comma + 1;
-    }
-    return out;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -206,24 +197,14 @@ int main(int argc, char** argv) {
     std::vector<std::string> presets = {"woven_fabric", "leather"};
     std::string thesis_preset = "knitted_wool";
     fs::path data = fs::path(BTF_SHARED_DIR) / "data" / "ubo2003-proposte-view000";
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
-        if (arg == "--size" && has_value) {
-            size = std::atoi(argv[++i]);
-        } else if (arg == "--presets" && has_value) {
-            presets = split(argv[++i]);
-        } else if (arg == "--data" && has_value) {
-            data = argv[++i];
-        } else if (arg == "--thesis-preset" && has_value) {
-            thesis_preset = argv[++i];
-        } else {
-            std::fprintf(stderr,
-                         "usage: rate_distortion [--size N] [--presets a,b] [--data DIR|-] "
-                         "[--thesis-preset NAME|-]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"Rate-distortion of every codec (docs/benchmarks.md)"};
+    app.add_option("--size", size, "texels per side of the synthetic presets")
+        ->capture_default_str();
+    app.add_option("--presets", presets, "synthetic presets")->delimiter(',');
+    app.add_option("--data", data, "the real measured view, or - for none")->capture_default_str();
+    app.add_option("--thesis-preset", thesis_preset, "preset of the thesis comparison, or -")
+        ->capture_default_str();
+    CLI11_PARSE(app, argc, argv);
     try {
         const auto configs = configurations();
         const DirectionSet& ubo = DirectionSet::ubo81();

@@ -13,6 +13,7 @@
 //   --data    the real view's folder (default: ../shared/data/ubo2003-proposte-view000/
 //             tv000_pv000); skipped with a note when absent
 
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -91,34 +92,16 @@ int main(int argc, char** argv) {
     fs::path images = fs::path(BTF_SOURCE_DIR) / "docs" / "images";
     fs::path data = fs::path(BTF_SHARED_DIR) / "data" / "ubo2003-proposte-view000" / "tv000_pv000";
     std::vector<std::string> presets = btf::synth::preset_names();
-    for (int i = 1; i < argc; ++i) {
-        const std::string arg = argv[i];
-        const bool has_value = i + 1 < argc;
-        if (arg == "--size" && has_value) {
-            size = std::atoi(argv[++i]);
-        } else if (arg == "--seed" && has_value) {
-            seed = std::strtoull(argv[++i], nullptr, 10);
-        } else if (arg == "--images" && has_value) {
-            images = argv[++i];
-        } else if (arg == "--data" && has_value) {
-            data = argv[++i];
-        } else if (arg == "--presets" && has_value) {
-            presets.clear();
-            std::string list = argv[++i];
-            for (size_t start = 0; start <= list.size();) {
-                const size_t comma = std::min(list.find(',', start), list.size());
-                if (comma > start) presets.push_back(list.substr(start, comma - start));
-                start = comma + 1;
-            }
-        } else {
-            std::fprintf(stderr,
-                         "usage: synth_realism [--size N] [--seed S] [--images DIR|-] [--data DIR] "
-                         "[--presets a,b,...]\npresets:\n");
-            for (const auto& p : btf::synth::presets())
-                std::fprintf(stderr, "  %-16s %s\n", p.name.c_str(), p.description.c_str());
-            return 2;
-        }
-    }
+    CLI::App app{"Synthetic vs. real: pictures and rank-k relative RMSE (docs/synth.md)"};
+    app.add_option("--size", size, "texels per side")->capture_default_str();
+    app.add_option("--seed", seed, "synthesis seed")->capture_default_str();
+    app.add_option("--images", images, "folder for the pictures, or - for none")
+        ->capture_default_str();
+    app.add_option("--data", data, "the real measured view's images")->capture_default_str();
+    app.add_option("--presets", presets, "presets (default: all)")
+        ->delimiter(',')
+        ->check(CLI::IsMember(btf::synth::preset_names()));
+    CLI11_PARSE(app, argc, argv);
     const bool pictures = images != "-";
     try {
         const btf::DirectionSet& ubo = btf::DirectionSet::ubo81();
