@@ -9,6 +9,7 @@
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/lpca/lpca.h"
 #include "btf/codecs/pca_views/pca_views.h"
+#include "btf/codecs/perceptual/perceptual.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -85,7 +86,8 @@ void Params::check_all_used(std::string_view codec, const std::vector<ParamInfo>
 }
 
 const std::vector<const Codec*>& codecs() {
-    static const std::vector<const Codec*> all = {&fmf_codec(), &pca_views_codec(), &lpca_codec()};
+    static const std::vector<const Codec*> all = {&fmf_codec(), &pca_views_codec(), &lpca_codec(),
+                                                  &perceptual_codec()};
     return all;
 }
 

@@ -7,6 +7,11 @@
 // per block and channel instead of 36 reconstructions. Component vectors are padded to a
 // multiple of 8 floats and processed with compiler vector extensions (8 lanes: one AVX register,
 // or two SSE registers on a baseline build).
+//
+// Blocks of a reduced spatial level (high-frequency omission) store b on a coarser grid whose
+// bilinear up-sampling defines the full-resolution texels; the bilinear interpolation of those
+// at a query composes to ≤ 3 × 3 coarse texels (≤ 4 × 4 on tiny grids), whose weights are
+// accumulated the same way.
 
 #include <algorithm>
 #include <cstring>
@@ -24,6 +29,8 @@ typedef float Lanes __attribute__((vector_size(32)));
 constexpr int kLanes = 8;
 // Largest component count per block the evaluator accepts (stack buffers are sized by it).
 constexpr int kMaxComponents = 1024;
+// Most spatial levels of a model (Model::validate allows no more).
+constexpr int kMaxLevels = 16;
 
 inline Lanes load(const float* p) {
     Lanes v;
@@ -54,12 +61,16 @@ struct FactorMaterial::Impl {
         int k = 0, kp = 0;        // components, padded to a multiple of kLanes
         std::vector<float> a, b;  // rows × kp, texels × kp (padding is zero)
         std::vector<float> mean;  // rows (zeros when the model has none)
+        bool has_mean = false;
+        // Contributes nothing: no components and no mean (e.g. an unused spatial level).
+        bool empty() const { return k == 0 && !has_mean; }
     };
     AngularInterpolator views, lights;
     std::vector<BlockData> blocks;
     std::vector<int32_t> cluster, local;  // per texel
     std::vector<int> group_of_view, slot_of_view;
-    int nl = 0, channels = 0, planes = 0, groups = 0, clusters = 0, max_kp = 0;
+    int nl = 0, channels = 0, planes = 0, groups = 0, clusters = 0, levels = 1, max_kp = 0;
+    int width = 0, height = 0;
     ColourHandling colour;
 
     Impl(const Model& m)
@@ -70,6 +81,9 @@ struct FactorMaterial::Impl {
           planes(m.colour.planes()),
           groups(static_cast<int>(m.groups.size())),
           clusters(m.clusters),
+          levels(m.levels),
+          width(m.width),
+          height(m.height),
           colour(m.colour) {
         const int64_t texels = int64_t(m.width) * m.height;
         cluster.assign(texels, 0);
@@ -104,11 +118,12 @@ struct FactorMaterial::Impl {
             for (int64_t r = 0; r < src.b.rows(); ++r)
                 for (int k = 0; k < d.k; ++k) d.b[r * d.kp + k] = src.b(r, k);
             d.mean = src.mean.empty() ? std::vector<float>(src.a.rows(), 0.0f) : src.mean;
+            d.has_mean = !src.mean.empty();
         }
     }
 
-    int block_index(int plane, int group, int c) const {
-        return (plane * groups + group) * clusters + c;
+    int block_index(int plane, int group, int c, int level = 0) const {
+        return ((plane * groups + group) * clusters + c) * levels + level;
     }
 
     // Angular accumulation of one block: acc[ch·kp + k] = Σ w_v w_l a(row(v, l, ch), k) over
@@ -156,12 +171,66 @@ struct FactorMaterial::Impl {
         return n;
     }
 
+    // Texels (rows of b) and weights of a query; 4 at level 0, ≤ 16 coarse ones at other levels.
     struct Texels {
-        int64_t texel[4];
-        float weight[4];
+        int64_t texel[16];
+        float weight[16];
+        int count = 4;
         int clusters[4];
         int num_clusters = 0;
     };
+
+    // Coarse texels along one axis of n full texels at `level` that the bilinear interpolation at
+    // coordinate c reads through the up-sampling, with their weights (duplicates merged).
+    struct AxisTaps {
+        int index[4];
+        float weight[4];
+        int count = 0;
+        void add(int i, float w) {
+            for (int k = 0; k < count; ++k)
+                if (index[k] == i) {
+                    weight[k] += w;
+                    return;
+                }
+            index[count] = i;
+            weight[count++] = w;
+        }
+    };
+    static AxisTaps axis_taps(double c, int n, int level) {
+        const WrapLerp full = wrap_lerp(c, n);
+        const int coarse = n >> level;
+        AxisTaps taps;
+        for (int k = 0; k < 2; ++k) {
+            const int i = k == 0 ? full.i0 : full.i1;
+            const float w = k == 0 ? 1 - full.t : full.t;
+            // The coarse grid's interpolation at full texel i's centre.
+            const WrapLerp up = wrap_lerp((i + 0.5) / n, coarse);
+            taps.add(up.i0, w * (1 - up.t));
+            taps.add(up.i1, w * up.t);
+        }
+        return taps;
+    }
+    Texels level_texels(const Uv& uv, int level) const {
+        const AxisTaps tx = axis_taps(uv.u, width, level), ty = axis_taps(uv.v, height, level);
+        const int64_t row = width >> level;
+        Texels t;
+        t.count = 0;
+        for (int j = 0; j < ty.count; ++j)
+            for (int i = 0; i < tx.count; ++i) {
+                t.texel[t.count] = ty.index[j] * row + tx.index[i];
+                t.weight[t.count++] = ty.weight[j] * tx.weight[i];
+            }
+        t.clusters[0] = 0;
+        t.num_clusters = 1;
+        return t;
+    }
+
+    // The texels of every level of a query (t: `levels` entries).
+    void all_texels(const Uv& uv, Texels* t) const {
+        t[0] = texels(uv, width, height);
+        for (int level = 1; level < levels; ++level) t[level] = level_texels(uv, level);
+    }
+
     Texels texels(const Uv& uv, int width, int height) const {
         const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
         Texels t;
@@ -194,7 +263,7 @@ struct FactorMaterial::Impl {
         float weight_sum = 0;
         for (int i = 0; i < d.kp; i += kLanes) store(b + i, Lanes{});
         const bool one_cluster = clusters == 1;
-        for (int j = 0; j < 4; ++j) {
+        for (int j = 0; j < t.count; ++j) {
             if (!one_cluster && cluster[t.texel[j]] != cluster_id) continue;
             weight_sum += t.weight[j];
             const int64_t texel = one_cluster ? t.texel[j] : local[t.texel[j]];
@@ -210,9 +279,10 @@ struct FactorMaterial::Impl {
         }
     }
 
-    // The common case of one view group and one texel cluster (fmf): one block per plane, so
-    // the spatial accumulation is shared by all channels of a plane and needs no cluster checks.
-    bool single_block() const { return groups == 1 && clusters == 1; }
+    // The common case of one view group, one texel cluster and one level (fmf): one block per
+    // plane, so the spatial accumulation is shared by all channels of a plane and needs no
+    // cluster checks.
+    bool single_block() const { return groups == 1 && clusters == 1 && levels == 1; }
 
     // Value of one query given the blocks' angular accumulations (acc: stride floats per plane,
     // mean: 3 per plane).
@@ -258,22 +328,96 @@ struct FactorMaterial::Impl {
     }
     Rgb finish(const Rgb& planes_out) const { return colour.inverse(planes_out); }
 
+    // The general path (several groups, clusters or levels), kept out of line so that the
+    // single-block path of eval() and eval_batch() compiles as compactly as without it.
+    // acc: channels × max_kp floats, mean: 3.
+    __attribute__((noinline)) Rgb general_value(const Uv& uv, const AngularWeights& vw,
+                                                const AngularWeights& lw, float* acc,
+                                                float* mean) const {
+        Texels t[kMaxLevels];
+        all_texels(uv, t);
+        int group_list[3];
+        const int num_groups = distinct_groups(*this, vw, group_list);
+        float out[3] = {0, 0, 0};
+        for (int p = 0; p < planes; ++p)
+            for (int gi = 0; gi < num_groups; ++gi)
+                for (int level = 0; level < levels; ++level)
+                    for (int ci = 0; ci < t[level].num_clusters; ++ci) {
+                        const BlockData& d =
+                            blocks[block_index(p, group_list[gi], t[level].clusters[ci], level)];
+                        if (d.empty()) continue;
+                        angular(d, group_list[gi], vw, lw, acc, mean);
+                        spatial(d, t[level].clusters[ci], t[level], acc, mean, out + p);
+                    }
+        return finish(out);
+    }
+
+    // The same with the angular accumulations cached per block (eval_batch): block i's are at
+    // cache + i · stride and cache_mean + 3 i, valid when stamp[i] == current.
+    __attribute__((noinline)) Rgb general_batch_value(const Uv& uv, const AngularWeights& vw,
+                                                      const AngularWeights& lw, float* cache,
+                                                      float* cache_mean, uint32_t* stamp,
+                                                      uint32_t current, int stride) const {
+        Texels t[kMaxLevels];
+        all_texels(uv, t);
+        int group_list[3];
+        const int num_groups = distinct_groups(*this, vw, group_list);
+        float value[3] = {0, 0, 0};
+        for (int p = 0; p < planes; ++p)
+            for (int gi = 0; gi < num_groups; ++gi)
+                for (int level = 0; level < levels; ++level)
+                    for (int ci = 0; ci < t[level].num_clusters; ++ci) {
+                        const int bi = block_index(p, group_list[gi], t[level].clusters[ci], level);
+                        if (blocks[bi].empty()) continue;
+                        float* acc = cache + int64_t(bi) * stride;
+                        float* mean = cache_mean + int64_t(bi) * 3;
+                        if (stamp[bi] != current) {
+                            angular(blocks[bi], group_list[gi], vw, lw, acc, mean);
+                            stamp[bi] = current;
+                        }
+                        spatial(blocks[bi], t[level].clusters[ci], t[level], acc, mean, value + p);
+                    }
+        return finish(value);
+    }
+
     // Plane values of one sample (scalar, in component order).
     Rgb sample_planes(int64_t texel, int view, int light) const {
         float out[3] = {0, 0, 0};
         const int g = group_of_view[view];
         const int64_t slot = slot_of_view[view];
-        for (int p = 0; p < planes; ++p) {
-            const BlockData& d = blocks[block_index(p, g, cluster[texel])];
-            const float* b = d.b.data() + int64_t(local[texel]) * d.kp;
-            for (int ch = 0; ch < channels; ++ch) {
-                const int64_t row = (slot * nl + light) * channels + ch;
-                const float* a = d.a.data() + row * d.kp;
-                float s = d.mean[row];
-                for (int k = 0; k < d.k; ++k) s += a[k] * b[k];
-                out[p + ch] = s;
+        float upsampled[kMaxComponents];
+        for (int p = 0; p < planes; ++p)
+            for (int level = 0; level < levels; ++level) {
+                const BlockData& d = blocks[block_index(p, g, cluster[texel], level)];
+                const float* b = nullptr;
+                if (level == 0) {
+                    b = d.b.data() + int64_t(local[texel]) * d.kp;
+                } else {
+                    // The up-sampled texel: bilinear over the coarse grid at its centre.
+                    const int x = static_cast<int>(texel % width);
+                    const int y = static_cast<int>(texel / width);
+                    const int cw = width >> level, coarse_height = height >> level;
+                    const WrapLerp ux = wrap_lerp((x + 0.5) / width, cw);
+                    const WrapLerp uy = wrap_lerp((y + 0.5) / height, coarse_height);
+                    const int64_t rows[4] = {
+                        int64_t(uy.i0) * cw + ux.i0, int64_t(uy.i0) * cw + ux.i1,
+                        int64_t(uy.i1) * cw + ux.i0, int64_t(uy.i1) * cw + ux.i1};
+                    const float w[4] = {(1 - ux.t) * (1 - uy.t), ux.t * (1 - uy.t),
+                                        (1 - ux.t) * uy.t, ux.t * uy.t};
+                    std::fill(upsampled, upsampled + d.k, 0.0f);
+                    for (int j = 0; j < 4; ++j)
+                        for (int k = 0; k < d.k; ++k)
+                            upsampled[k] += w[j] * d.b[rows[j] * d.kp + k];
+                    b = upsampled;
+                }
+                for (int ch = 0; ch < channels; ++ch) {
+                    const int64_t row = (slot * nl + light) * channels + ch;
+                    const float* a = d.a.data() + row * d.kp;
+                    float s = d.mean[row];
+                    for (int k = 0; k < d.k; ++k) s += a[k] * b[k];
+                    out[p + ch] += s;
+                }
             }
-        }
         return {out[0], out[1], out[2]};
     }
 };
@@ -302,18 +446,7 @@ Rgb FactorMaterial::eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const {
             m.angular(m.blocks[p], 0, vw, lw, acc + p * stride, mean + 3 * p);
         return m.single_block_value(uv, m_model.width, m_model.height, acc, stride, mean);
     }
-    const Impl::Texels t = m.texels(uv, m_model.width, m_model.height);
-    int groups[3];
-    const int num_groups = Impl::distinct_groups(m, vw, groups);
-    float out[3] = {0, 0, 0};
-    for (int p = 0; p < m.planes; ++p)
-        for (int gi = 0; gi < num_groups; ++gi)
-            for (int ci = 0; ci < t.num_clusters; ++ci) {
-                const auto& d = m.blocks[m.block_index(p, groups[gi], t.clusters[ci])];
-                m.angular(d, groups[gi], vw, lw, acc, mean);
-                m.spatial(d, t.clusters[ci], t, acc, mean, out + p);
-            }
-    return m.finish(out);
+    return m.general_value(uv, vw, lw, acc, mean);
 }
 
 void FactorMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
@@ -349,23 +482,8 @@ void FactorMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> o
                                           stride, cache_mean.data());
             continue;
         }
-        const Impl::Texels t = m.texels(query.uv, m_model.width, m_model.height);
-        int groups[3];
-        const int num_groups = Impl::distinct_groups(m, vw, groups);
-        float value[3] = {0, 0, 0};
-        for (int p = 0; p < m.planes; ++p)
-            for (int gi = 0; gi < num_groups; ++gi)
-                for (int ci = 0; ci < t.num_clusters; ++ci) {
-                    const int bi = m.block_index(p, groups[gi], t.clusters[ci]);
-                    float* acc = cache.data() + int64_t(bi) * stride;
-                    float* mean = cache_mean.data() + int64_t(bi) * 3;
-                    if (stamp[bi] != current) {
-                        m.angular(m.blocks[bi], groups[gi], vw, lw, acc, mean);
-                        stamp[bi] = current;
-                    }
-                    m.spatial(m.blocks[bi], t.clusters[ci], t, acc, mean, value + p);
-                }
-        out[q] = m.finish(value);
+        out[q] = m.general_batch_value(query.uv, vw, lw, cache.data(), cache_mean.data(),
+                                       stamp.data(), current, stride);
     }
 }
 

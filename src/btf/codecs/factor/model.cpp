@@ -46,6 +46,8 @@ std::string to_string(ColourBasis basis) {
             return "per-channel";
         case ColourBasis::kUboModel11:
             return "model11";
+        case ColourBasis::kLab:
+            return "lab";
     }
     return "?";
 }
@@ -55,7 +57,21 @@ ColourBasis parse_colour_basis(const std::string& text) {
     if (text == "decorrelated") return ColourBasis::kDecorrelated;
     if (text == "per-channel") return ColourBasis::kPerChannel;
     if (text == "model11") return ColourBasis::kUboModel11;
-    fail("unknown colour handling '{}' (known: rgb, decorrelated, per-channel, model11)", text);
+    if (text == "lab") return ColourBasis::kLab;
+    fail("unknown colour handling '{}' (known: rgb, decorrelated, per-channel, model11, lab)",
+         text);
+}
+
+size_t column_bytes(Quantization q, int64_t n) {
+    switch (q) {
+        case Quantization::kF32:
+            return 4 * size_t(n);
+        case Quantization::kF16:
+            return 2 * size_t(n);
+        case Quantization::kU8:
+            return 8 + size_t(n);
+    }
+    return 0;
 }
 
 std::vector<ParamInfo> quantization_params() {
@@ -103,6 +119,10 @@ Rgb ColourHandling::forward(const Rgb& rgb) const {
         const auto c = rgb_to_ubo_model11(rgb);
         return {c[0], c[1], c[2]};
     }
+    if (basis == ColourBasis::kLab) {
+        const Lab c = rgb_to_lab(rgb);
+        return {static_cast<float>(c.l), static_cast<float>(c.a), static_cast<float>(c.b)};
+    }
     Rgb v = rgb;
     if (log)
         v = {std::log(std::max(v.r, 0.0f) + log_eps), std::log(std::max(v.g, 0.0f) + log_eps),
@@ -117,6 +137,7 @@ Rgb ColourHandling::forward(const Rgb& rgb) const {
 
 Rgb ColourHandling::inverse(const Rgb& p) const {
     if (basis == ColourBasis::kUboModel11) return ubo_model11_to_rgb({p.r, p.g, p.b});
+    if (basis == ColourBasis::kLab) return lab_to_rgb({p.r, p.g, p.b});
     Rgb v = p;
     if (basis == ColourBasis::kDecorrelated) {
         const auto& t = decorrelation();  // orthonormal: the inverse is the transpose
@@ -145,6 +166,12 @@ std::vector<std::vector<int32_t>> Model::cluster_texels() const {
     return out;
 }
 
+int64_t Model::block_texels(const std::vector<std::vector<int32_t>>& lists, int cluster,
+                            int level) const {
+    if (level == 0) return static_cast<int64_t>(lists[cluster].size());
+    return int64_t(level_width(level)) * level_height(level);
+}
+
 void Model::validate(const std::string& what) const {
     if (width < 1 || height < 1) fail("{}: bad extent {}×{}", what, width, height);
     if (sampling.views.empty() || sampling.lights.empty()) fail("{}: empty sampling", what);
@@ -164,16 +191,28 @@ void Model::validate(const std::string& what) const {
         for (int32_t c : texel_cluster)
             if (c < 0 || c >= clusters) fail("{}: texel cluster {} of {}", what, c, clusters);
     }
-    const int64_t expected = int64_t(colour.planes()) * groups.size() * clusters;
+    if (colour.log && colour.basis == ColourBasis::kLab) fail("{}: log with lab colour", what);
+    if (levels < 1 || levels > 16) fail("{}: {} spatial levels", what, levels);
+    if (levels > 1) {
+        const int step = 1 << (levels - 1);
+        if (clusters != 1)
+            fail("{}: {} spatial levels with {} texel clusters (levels need one cluster)", what,
+                 levels, clusters);
+        if (width % step != 0 || height % step != 0)
+            fail("{}: {} spatial levels need width and height divisible by {} ({}×{})", what,
+                 levels, step, width, height);
+    }
+    const int64_t expected = int64_t(colour.planes()) * groups.size() * clusters * levels;
     if (static_cast<int64_t>(blocks.size()) != expected)
         fail("{}: {} blocks, expected {}", what, blocks.size(), expected);
     const auto texels = cluster_texels();
     for (size_t i = 0; i < blocks.size(); ++i) {
         const Block& b = blocks[i];
-        if (block_index(b.plane, b.group, b.cluster) != static_cast<int>(i))
+        if (b.level < 0 || b.level >= levels ||
+            block_index(b.plane, b.group, b.cluster, b.level) != static_cast<int>(i))
             fail("{}: block {} is out of order", what, i);
         const int64_t rows = this->rows(b.group);
-        if (b.a.rows() != rows || b.b.rows() != static_cast<int64_t>(texels[b.cluster].size()) ||
+        if (b.a.rows() != rows || b.b.rows() != block_texels(texels, b.cluster, b.level) ||
             b.a.cols() != b.b.cols() || static_cast<int>(b.energy.size()) != b.components() ||
             (!b.mean.empty() && static_cast<int64_t>(b.mean.size()) != rows))
             fail("{}: block {} has inconsistent shapes", what, i);
@@ -244,19 +283,6 @@ DirectionSet directions_from_json(const nlohmann::json& j) {
     for (size_t i = 0; i < theta.size(); ++i)
         dirs.push_back({theta[i].get<double>(), phi[i].get<double>()});
     return DirectionSet(j.at("name").get<std::string>(), std::move(dirs));
-}
-
-// Bytes of one quantized column of n values.
-size_t column_bytes(Quantization q, int64_t n) {
-    switch (q) {
-        case Quantization::kF32:
-            return 4 * size_t(n);
-        case Quantization::kF16:
-            return 2 * size_t(n);
-        case Quantization::kU8:
-            return 8 + size_t(n);
-    }
-    return 0;
 }
 
 void put_column(std::vector<uint8_t>& out, Quantization q, const float* v, int64_t n,
@@ -345,14 +371,18 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     m["quantization"] = to_string(quantization);
     m["groups"] = model.groups;
     m["clusters"] = model.clusters;
+    // Single-level models keep the header they always had (no "levels", no block "level").
+    if (model.levels > 1) m["levels"] = model.levels;
     nlohmann::json blocks = nlohmann::json::array();
-    for (const Block& b : model.blocks)
+    for (const Block& b : model.blocks) {
         blocks.push_back({{"plane", b.plane},
                           {"group", b.group},
                           {"cluster", b.cluster},
                           {"components", b.components()},
                           {"mean", !b.mean.empty()},
                           {"energy", b.energy}});
+        if (model.levels > 1) blocks.back()["level"] = b.level;
+    }
     m["blocks"] = blocks;
     h["model"] = m;
 
@@ -420,6 +450,13 @@ Model from_package(const Package& package) {
         model.clusters = m.at("clusters").get<int>();
         if (model.clusters < 1 || model.clusters > model.width * model.height)
             fail("{} clusters", model.clusters);
+        model.levels = m.value("levels", 1);
+        if (model.levels < 1 || model.levels > 16 ||
+            (model.levels > 1 &&
+             (model.clusters != 1 || model.width % (1 << (model.levels - 1)) != 0 ||
+              model.height % (1 << (model.levels - 1)) != 0)))
+            fail("{} spatial levels for {}×{} texels in {} clusters", model.levels, model.width,
+                 model.height, model.clusters);
         const int64_t texels = int64_t(model.width) * model.height;
         if (model.clusters > 1) {
             if (const PackageSection* s = package.find("clusters")) {
@@ -434,10 +471,11 @@ Model from_package(const Package& package) {
         }
         const auto& blocks = m.at("blocks");
         const int planes = model.colour.planes();
-        if (static_cast<int64_t>(blocks.size()) !=
-            int64_t(planes) * static_cast<int64_t>(model.groups.size()) * model.clusters)
-            fail("{} blocks for {} planes × {} groups × {} clusters", blocks.size(), planes,
-                 model.groups.size(), model.clusters);
+        if (static_cast<int64_t>(blocks.size()) != int64_t(planes) *
+                                                       static_cast<int64_t>(model.groups.size()) *
+                                                       model.clusters * model.levels)
+            fail("{} blocks for {} planes × {} groups × {} clusters × {} levels", blocks.size(),
+                 planes, model.groups.size(), model.clusters, model.levels);
         std::vector<int> declared(blocks.size());
         model.blocks.resize(blocks.size());
         // Validate groups and clusters before sizing blocks from them.
@@ -446,10 +484,12 @@ Model from_package(const Package& package) {
             b.plane = blocks[i].at("plane").get<int>();
             b.group = blocks[i].at("group").get<int>();
             b.cluster = blocks[i].at("cluster").get<int>();
+            b.level = blocks[i].value("level", 0);
             declared[i] = blocks[i].at("components").get<int>();
             if (b.plane < 0 || b.plane >= planes || b.group < 0 ||
                 b.group >= static_cast<int>(model.groups.size()) || b.cluster < 0 ||
-                b.cluster >= model.clusters || declared[i] < 0 || declared[i] > 4096)
+                b.cluster >= model.clusters || b.level < 0 || b.level >= model.levels ||
+                declared[i] < 0 || declared[i] > 4096)
                 fail("block {} is out of range", i);
         }
         const auto texel_lists = model.cluster_texels();
@@ -483,7 +523,8 @@ Model from_package(const Package& package) {
                 k >= declared[block])
                 fail("component section '{}' is out of order or undeclared", s.name);
             const int64_t rows = model.rows(model.blocks[block].group);
-            const int64_t cols = texel_lists[model.blocks[block].cluster].size();
+            const int64_t cols = model.block_texels(texel_lists, model.blocks[block].cluster,
+                                                    model.blocks[block].level);
             if (s.data.size() != column_bytes(q, rows) + column_bytes(q, cols))
                 fail("section '{}' holds {} bytes, expected {}", s.name, s.data.size(),
                      column_bytes(q, rows) + column_bytes(q, cols));
@@ -499,7 +540,7 @@ Model from_package(const Package& package) {
                      energy.size());
             b.energy.assign(energy.begin(), energy.begin() + k);
             b.a.resize(model.rows(b.group), k);
-            b.b.resize(static_cast<int64_t>(texel_lists[b.cluster].size()), k);
+            b.b.resize(model.block_texels(texel_lists, b.cluster, b.level), k);
             for (int c = 0; c < k; ++c) {
                 const uint8_t* in = sections[i][c]->data.data();
                 in = get_column(q, in, b.a.data() + c, b.a.rows(), k);

@@ -1,6 +1,6 @@
 #pragma once
-/// The linear factor model shared by the factorization codecs (fmf, pca-views, lpca): its
-/// package sections, its quantization and its fast evaluator.
+/// The linear factor model shared by the factorization codecs (fmf, pca-views, lpca, perceptual):
+/// its package sections, its quantization and its fast evaluator.
 ///
 /// The BTF is split into blocks by colour plane, view group and texel cluster. Each block is one
 /// factorized matrix whose rows are angular samples and whose columns are the block's texels:
@@ -12,11 +12,19 @@
 ///   decorrelated colour (channels = 1, three planes).
 /// - `pca-views`: groups of k neighbouring views, one cluster, rows centred on their mean.
 /// - `lpca`: one group, texels clustered by their ABRDF, rows centred per cluster.
+/// - `perceptual`: one group, one cluster, CIELab planes; with high-frequency omission several
+///   spatial levels, each block's texel factor b at its level's resolution.
 ///
 /// Colour: plane values are p = T · f(rgb), with f = identity or f(x) = log(x + eps) (dynamic
 /// range reduction) and T the identity (rgb) or an orthonormal luminance/chroma basis
-/// (decorrelated); decoding inverts both after the linear combination. Interpolation (bilinear
-/// in space, barycentric over views and lights) happens on the plane values.
+/// (decorrelated), or the nonlinear model11 and CIELab conversions; decoding inverts them after
+/// the linear combination. Interpolation (bilinear in space, barycentric over views and lights)
+/// happens on the plane values.
+///
+/// Spatial levels: a block of level j stores b on a grid of (width / 2^j) × (height / 2^j) texels;
+/// the model's value at texel (x, y) is the bilinear, wrapping up-sampling of that grid, whose
+/// texel centres lie at ((i + 0.5) · 2^j − 0.5) in full-resolution texel units. Levels need one
+/// texel cluster and width and height divisible by 2^(levels − 1).
 
 #include <array>
 #include <memory>
@@ -42,6 +50,9 @@ enum class Quantization {
 std::string to_string(Quantization q);
 /// "f32", "f16" or "u8"; throws btf::Error otherwise.
 Quantization parse_quantization(const std::string& text);
+/// Bytes of one quantized factor column of n values (a component section holds the a and the b
+/// column of its component).
+size_t column_bytes(Quantization q, int64_t n);
 
 /// How RGB values become the planes that are factorized.
 enum class ColourBasis {
@@ -49,15 +60,16 @@ enum class ColourBasis {
     kDecorrelated,  ///< 3 planes in an orthonormal luminance/chroma basis
     kPerChannel,    ///< 3 planes R, G, B (UBO2014 DFMF colour model 0)
     kUboModel11,    ///< 3 planes (log Y, U/Y, V/Y) of UBO2014 DFMF colour model 11
+    kLab,           ///< 3 planes L*, a*, b* (CIELab, D65 white with Y = 1; btf::rgb_to_lab)
 };
 std::string to_string(ColourBasis basis);
-/// "rgb", "decorrelated", "per-channel" or "model11"; throws btf::Error otherwise.
+/// "rgb", "decorrelated", "per-channel", "model11" or "lab"; throws btf::Error otherwise.
 ColourBasis parse_colour_basis(const std::string& text);
 
 struct ColourHandling {
     ColourBasis basis = ColourBasis::kRgb;
     /// Factorize log(value + log_eps) (dynamic-range reduction for HDR sources). Not combined
-    /// with kUboModel11, whose luminance plane is logarithmic already.
+    /// with kUboModel11, whose luminance plane is logarithmic already, nor with kLab.
     bool log = false;
     float log_eps = 1e-3f;
     int planes() const { return basis == ColourBasis::kRgb ? 1 : 3; }
@@ -74,9 +86,10 @@ struct ColourHandling {
 
 struct Block {
     int plane = 0, group = 0, cluster = 0;
+    int level = 0;  ///< spatial level: b holds (width >> level) × (height >> level) texels
     std::vector<float> mean;  ///< one per row, or empty (no centring)
     Matrix a;                 ///< rows × K
-    Matrix b;                 ///< texels of the cluster × K
+    Matrix b;                 ///< texels of the cluster (at the block's level) × K
     /// Energy of each component (singular value, or the norm of a·bᵀ's column product); the
     /// package stores components of all blocks in decreasing energy.
     std::vector<float> energy;
@@ -93,16 +106,27 @@ struct Model {
     int clusters = 1;
     /// Cluster of each texel (y · width + x); empty when clusters == 1.
     std::vector<int32_t> texel_cluster;
-    /// planes × groups × clusters blocks, index (plane · groups + group) · clusters + cluster.
+    /// Spatial levels (1: every b at full resolution); more need clusters == 1 and width and
+    /// height divisible by 2^(levels − 1).
+    int levels = 1;
+    /// planes × groups × clusters × levels blocks, index
+    /// ((plane · groups + group) · clusters + cluster) · levels + level.
     std::vector<Block> blocks;
 
-    int block_index(int plane, int group, int cluster) const {
-        return (plane * static_cast<int>(groups.size()) + group) * clusters + cluster;
+    int block_index(int plane, int group, int cluster, int level = 0) const {
+        return ((plane * static_cast<int>(groups.size()) + group) * clusters + cluster) * levels +
+               level;
     }
+    /// Width and height of the texel grid of `level`.
+    int level_width(int level) const { return width >> level; }
+    int level_height(int level) const { return height >> level; }
     /// Rows of the blocks of group g: views in g × lights × channels.
     int64_t rows(int group) const;
-    /// Texels of each cluster, in texel order (the columns of its blocks).
+    /// Texels of each cluster, in texel order (the columns of its level-0 blocks).
     std::vector<std::vector<int32_t>> cluster_texels() const;
+    /// Rows of b of a block of `cluster` at `level` (`lists` = cluster_texels()).
+    int64_t block_texels(const std::vector<std::vector<int32_t>>& lists, int cluster,
+                         int level) const;
     /// Throws btf::Error naming `what` when shapes disagree.
     void validate(const std::string& what) const;
 };

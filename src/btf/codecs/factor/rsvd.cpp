@@ -110,36 +110,53 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
     std::vector<std::vector<float>> means(count);
     std::vector<double> energy(count, 0.0);
     std::vector<Matrix> y(count), z(count), basis(count);
+    // With transforms the passes multiply M by mapped operands (RᵀΩ, LᵀQ) and map the products
+    // (L·, R·): basis holds the unmapped thin factors, operand what a pass multiplies with.
+    const Transforms* maps = options.transforms;
+    std::vector<Matrix> operand(count);
+    auto direct_pass = [&] {
+        for (int m = 0; m < count; ++m) {
+            if (maps) {
+                operand[m] = basis[m];
+                maps->right(m, operand[m], true);
+            }
+            y[m] = Matrix::Zero(batches.rows(m), width[m]);
+        }
+        const bool first_pass = pass_number == 0;
+        pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
+             first_pass ? &energy : nullptr, progress, stage(),
+             [&](int m, int64_t first, const Matrix& rows) {
+                 multiply_rows(rows, maps ? operand[m] : basis[m], first, y[m]);
+             });
+        if (maps)
+            for (int m = 0; m < count; ++m) maps->left(m, y[m], false);
+    };
     for (int m = 0; m < count; ++m) {
         if (options.subtract_mean) means[m].assign(batches.rows(m), 0.0f);
         basis[m] = gaussian(batches.cols(m), width[m], options.seed + 7919 * uint64_t(m));
-        y[m] = Matrix::Zero(batches.rows(m), width[m]);
     }
-    pass(batches, options.subtract_mean, &means, &energy, progress, stage(),
-         [&](int m, int64_t first, const Matrix& rows) {
-             multiply_rows(rows, basis[m], first, y[m]);
-         });
+    direct_pass();
 
     auto transposed_pass = [&] {
         for (int m = 0; m < count; ++m) {
             basis[m] = orthonormal_basis(y[m]);
+            if (maps) {
+                operand[m] = basis[m];
+                maps->left(m, operand[m], true);
+            }
             z[m] = Matrix::Zero(batches.cols(m), width[m]);
         }
         pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
              [&](int m, int64_t first, const Matrix& rows) {
-                 multiply_transposed(rows, basis[m], first, z[m]);
+                 multiply_transposed(rows, maps ? operand[m] : basis[m], first, z[m]);
              });
+        if (maps)
+            for (int m = 0; m < count; ++m) maps->right(m, z[m], false);
     };
     for (int i = 0; i < options.power_iterations; ++i) {
         transposed_pass();
-        for (int m = 0; m < count; ++m) {
-            basis[m] = orthonormal_basis(z[m]);
-            y[m].setZero();
-        }
-        pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
-             [&](int m, int64_t first, const Matrix& rows) {
-                 multiply_rows(rows, basis[m], first, y[m]);
-             });
+        for (int m = 0; m < count; ++m) basis[m] = orthonormal_basis(z[m]);
+        direct_pass();
     }
     // Final: Z = Mᵀ Q, so M ≈ Q Zᵀ; with Z = Q₂ R and Rᵀ = Ur S Vrᵀ: M ≈ (Q Ur) S (Q₂ Vr)ᵀ.
     transposed_pass();
@@ -160,8 +177,45 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
         out.sigma = svd.singularValues().head(k).cast<float>();
         out.mean = std::move(means[m]);
         out.total_energy = energy[m];
+        out.sketch_energy = svd.singularValues().squaredNorm();
     }
     return result;
+}
+
+std::vector<Factors> untransformed_factors(const RowBatches& batches, const Transforms& transforms,
+                                           const std::vector<Svd>& svds,
+                                           const std::vector<int>& keep, Progress& progress) {
+    const int count = batches.matrices();
+    if (static_cast<int>(svds.size()) != count || static_cast<int>(keep.size()) != count)
+        fail("untransformed factors: {} SVDs and {} counts for {} matrices", svds.size(),
+             keep.size(), count);
+    const bool centred = !svds[0].mean.empty();
+    // Operands: Rᵀ Q Σ⁻¹ for the row products, Lᵀ P for the column products.
+    std::vector<Matrix> right(count), left(count);
+    std::vector<Factors> out(count);
+    for (int m = 0; m < count; ++m) {
+        const Svd& svd = svds[m];
+        const int k = keep[m];
+        if (k < 0 || k > svd.sigma.size() || svd.u.rows() != batches.rows(m) ||
+            svd.v.rows() != batches.cols(m) || svd.mean.empty() == centred)
+            fail("untransformed factors: SVD {} does not match its matrix", m);
+        if (k > 0 && !(svd.sigma[k - 1] > 0))
+            fail("untransformed factors: SVD {} keeps a zero singular value", m);
+        right[m] = svd.v.leftCols(k);
+        transforms.right(m, right[m], true);
+        right[m] = right[m] * svd.sigma.head(k).cwiseInverse().asDiagonal();
+        left[m] = svd.u.leftCols(k);
+        transforms.left(m, left[m], true);
+        out[m].a = Matrix::Zero(batches.rows(m), k);
+        out[m].b = Matrix::Zero(batches.cols(m), k);
+    }
+    pass(batches, centred, nullptr, nullptr, progress, "factorizing: untransforming",
+         [&](int m, int64_t first, const Matrix& rows) {
+             if (keep[m] == 0) return;
+             multiply_rows(rows, right[m], first, out[m].a);
+             multiply_transposed(rows, left[m], first, out[m].b);
+         });
+    return out;
 }
 
 Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean) {
@@ -181,6 +235,7 @@ Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean) {
     out.u = svd.matrixU().leftCols(k).cast<float>();
     out.v = svd.matrixV().leftCols(k).cast<float>();
     out.sigma = svd.singularValues().head(k).cast<float>();
+    out.sketch_energy = out.total_energy;
     return out;
 }
 

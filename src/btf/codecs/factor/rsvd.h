@@ -11,6 +11,10 @@
 ///
 /// Numerics are deterministic for a given seed: row products are computed per batch, column
 /// products in fixed column slices, independent of the number of threads.
+///
+/// Optional linear maps around the streamed matrices (Transforms) factorize L·M·Rᵀ instead of M
+/// without ever forming it: only the thin sketches are mapped (the perceptual codec's CSF filters,
+/// Guthe et al. 2009 §5). untransformed_factors() then returns to M's space in one more pass.
 
 #include <Eigen/Core>
 
@@ -38,6 +42,19 @@ class RowBatches {
     virtual void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const = 0;
 };
 
+/// Linear maps L_m (rows × rows) and R_m (cols × cols) around matrix m. They are applied to thin
+/// matrices only (l = rank + oversampling columns): randomized_svd() then factorizes
+/// M̃_m = L_m · (M_m − mean) · R_mᵀ, using the products M̃Ω = L(M(RᵀΩ)) and M̃ᵀQ = R(Mᵀ(LᵀQ)).
+/// Implementations must be deterministic and may use worker threads.
+class Transforms {
+  public:
+    virtual ~Transforms() = default;
+    /// y ← L_m y, or L_mᵀ y when `transpose` (y has rows(m) rows).
+    virtual void left(int matrix, Matrix& y, bool transpose) const = 0;
+    /// z ← R_m z, or R_mᵀ z when `transpose` (z has cols(m) rows).
+    virtual void right(int matrix, Matrix& z, bool transpose) const = 0;
+};
+
 struct SvdOptions {
     int rank = 16;             ///< components kept (clamped to min(rows, cols))
     int oversampling = 10;     ///< extra random vectors of the range finder
@@ -45,6 +62,8 @@ struct SvdOptions {
     /// Subtract each row's mean over the columns before factorizing (PCA with row-mean centring).
     bool subtract_mean = false;
     uint64_t seed = 1;
+    /// Factorize L·(M − mean)·Rᵀ instead of M − mean (null: no maps). Not owned.
+    const Transforms* transforms = nullptr;
 };
 
 /// value(r, c) ≈ mean[r] + Σ_k u(r, k) · sigma[k] · v(c, k); u and v have orthonormal columns.
@@ -55,12 +74,35 @@ struct Svd {
     std::vector<float> mean;  ///< rows entries when subtract_mean, else empty
     double total_energy = 0;  ///< ‖M − mean‖²_F, so that the truncation error is known:
                               ///< ‖M − M_k‖²_F = total_energy − Σ sigma²
+                              ///< (with Transforms: of the untransformed M − mean)
+    /// Σ of the squares of all rank + oversampling singular values of the sketch: the energy of
+    /// the factorized (with Transforms: transformed) matrix within the sketched subspace. At most
+    /// its total energy; equal to it when the sketch spans the row space (exact_svd: always).
+    double sketch_energy = 0;
 };
 
 /// Randomized truncated SVDs of every matrix of `batches` (one result per matrix) in
 /// 2 + 2·power_iterations passes. Reports one progress unit per batch read.
 std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
                                 Progress& progress = Progress::none());
+
+/// Factors of the untransformed matrices that transformed SVDs imply (Guthe et al. 2009, §5.4:
+/// "accumulate the untransformed basis textures and ABRDFs"). For M̃ = L (M − mean) Rᵀ ≈ P Σ Qᵀ,
+/// the first keep[m] triplets of svds[m], one streaming pass computes
+///     a = (M − mean) Rᵀ Q Σ⁻¹   (rows × k)      b = (M − mean)ᵀ Lᵀ P   (cols × k)
+/// so that L a = M̃ Q Σ⁻¹ and R b = M̃ᵀ P. For an exact SVD these are P and Q Σ, hence
+/// a bᵀ = L⁻¹ P Σ Qᵀ R⁻ᵀ without inverting L or R (neither needs to be invertible or
+/// symmetric). `svds` must come from randomized_svd(batches, …) with these transforms (its means
+/// are subtracted again) or from exact_svd() of the transformed matrices; kept singular values
+/// must be positive. Reports one progress unit per batch.
+struct Factors {
+    Matrix a;  ///< rows × k
+    Matrix b;  ///< cols × k
+};
+std::vector<Factors> untransformed_factors(const RowBatches& batches, const Transforms& transforms,
+                                           const std::vector<Svd>& svds,
+                                           const std::vector<int>& keep,
+                                           Progress& progress = Progress::none());
 
 /// Exact truncated SVD of an in-memory matrix (Eigen BDCSVD in double): the reference for tests.
 Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean);

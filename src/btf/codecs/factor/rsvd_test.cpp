@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
 #include <Eigen/QR>
 #include <cmath>
 #include <random>
 
+#include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
 namespace btf::factor {
@@ -123,6 +125,123 @@ TEST(RandomizedSvd, ClampsTheRankToTheMatrix) {
     const Svd svd = randomized_svd(rows, options)[0];
     EXPECT_EQ(svd.sigma.size(), 5);
     EXPECT_LT(truncation_error(m, svd), 1e-4 * m.norm());
+}
+
+// Explicit linear maps around a matrix: L (rows × rows) and R (cols × cols), neither symmetric.
+class DenseTransforms final : public Transforms {
+  public:
+    DenseTransforms(Eigen::MatrixXd l, Eigen::MatrixXd r) : m_l(std::move(l)), m_r(std::move(r)) {}
+    void left(int, Matrix& y, bool transpose) const override {
+        const Eigen::MatrixXd x = y.cast<double>();
+        y = (transpose ? Eigen::MatrixXd(m_l.transpose() * x) : Eigen::MatrixXd(m_l * x))
+                .cast<float>();
+    }
+    void right(int, Matrix& z, bool transpose) const override {
+        const Eigen::MatrixXd x = z.cast<double>();
+        z = (transpose ? Eigen::MatrixXd(m_r.transpose() * x) : Eigen::MatrixXd(m_r * x))
+                .cast<float>();
+    }
+    const Eigen::MatrixXd& l() const { return m_l; }
+    const Eigen::MatrixXd& r() const { return m_r; }
+
+  private:
+    Eigen::MatrixXd m_l, m_r;
+};
+
+// A well-conditioned, non-symmetric n × n matrix: I + a random perturbation.
+Eigen::MatrixXd invertible(int n, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> normal;
+    Eigen::MatrixXd m = Eigen::MatrixXd::Identity(n, n);
+    for (int64_t i = 0; i < m.size(); ++i) m.data()[i] += 0.4 * normal(rng) / std::sqrt(n);
+    return m;
+}
+
+// P Σ Qᵀ of the first k triplets.
+Eigen::MatrixXd product(const Svd& svd, int k) {
+    return svd.u.leftCols(k).cast<double>() * svd.sigma.head(k).cast<double>().asDiagonal() *
+           svd.v.leftCols(k).cast<double>().transpose();
+}
+
+TEST(TransformedSvd, FactorizesTheTransformedMatrixWithoutFormingIt) {
+    const Matrix m = decaying(40, 90, 21);
+    const DenseTransforms maps(invertible(40, 1), invertible(90, 2));
+    const Matrix transformed = (maps.l() * m.cast<double>() * maps.r().transpose()).cast<float>();
+    MemoryRows rows({&m}, 7);
+    SvdOptions options;
+    options.rank = 6;
+    options.transforms = &maps;
+    const Svd fast = randomized_svd(rows, options)[0];
+    const Svd exact = exact_svd(transformed, 6, false);
+    EXPECT_LE(truncation_error(transformed, fast), 1.01 * truncation_error(transformed, exact));
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(fast.sigma[k], exact.sigma[k], 1e-3 * exact.sigma[0]);
+    // The sketch's energy: the transformed matrix's within the sketched subspace.
+    EXPECT_LE(fast.sketch_energy, transformed.cast<double>().squaredNorm() * (1 + 1e-5));
+    EXPECT_GE(fast.sketch_energy, exact.sigma.cast<double>().squaredNorm() * (1 - 1e-5));
+    EXPECT_NEAR(fast.total_energy, m.cast<double>().squaredNorm(), 1e-5 * fast.total_energy);
+}
+
+// §5.4 of Guthe et al.: the untransformed factors a = M Rᵀ Q Σ⁻¹, b = Mᵀ Lᵀ P reproduce
+// L⁻¹ P Σ Qᵀ R⁻ᵀ exactly for an exact SVD of L M Rᵀ, without inverting L or R.
+TEST(TransformedSvd, UntransformedFactorsEqualTheInverseTransformOfTheApproximation) {
+    const Matrix m = decaying(24, 36, 5);
+    const DenseTransforms maps(invertible(24, 3), invertible(36, 4));
+    const Matrix transformed = (maps.l() * m.cast<double>() * maps.r().transpose()).cast<float>();
+    MemoryRows rows({&m}, 5);
+    for (int k : {1, 8, 24}) {
+        const Svd exact = exact_svd(transformed, k, false);
+        const Factors f = untransformed_factors(rows, maps, {exact}, {k})[0];
+        ASSERT_EQ(f.a.rows(), 24);
+        ASSERT_EQ(f.b.rows(), 36);
+        ASSERT_EQ(f.a.cols(), k);
+        const Eigen::MatrixXd expected =
+            maps.l().inverse() * product(exact, k) * maps.r().inverse().transpose();
+        const Eigen::MatrixXd got = f.a.cast<double>() * f.b.cast<double>().transpose();
+        EXPECT_LT((got - expected).norm(), 1e-4 * expected.norm()) << "rank " << k;
+        // Their transforms are the transformed factors: L a = P, R b = Q Σ.
+        EXPECT_LT((maps.l() * f.a.cast<double>() - exact.u.cast<double>()).norm(), 1e-4 * k);
+        // At full rank the approximation is the matrix itself.
+        if (k == 24) EXPECT_LT((got - m.cast<double>()).norm(), 1e-4 * m.norm());
+    }
+}
+
+TEST(TransformedSvd, UntransformedFactorsOfACentredRandomizedSvd) {
+    Matrix m = decaying(30, 50, 6);
+    for (int64_t r = 0; r < m.rows(); ++r) m.row(r).array() += 1.0f + 0.05f * r;
+    const DenseTransforms maps(invertible(30, 7), invertible(50, 8));
+    MemoryRows rows({&m}, 4);
+    SvdOptions options;
+    options.rank = 30;  // full rank: the sketch is exact
+    options.subtract_mean = true;
+    options.transforms = &maps;
+    const Svd svd = randomized_svd(rows, options)[0];
+    ASSERT_EQ(svd.mean.size(), 30u);
+    for (int k : {5, 29}) {
+        const Factors f = untransformed_factors(rows, maps, {svd}, {k})[0];
+        const Eigen::MatrixXd expected =
+            maps.l().inverse() * product(svd, k) * maps.r().inverse().transpose();
+        const Eigen::MatrixXd got = f.a.cast<double>() * f.b.cast<double>().transpose();
+        EXPECT_LT((got - expected).norm(), 1e-3 * expected.norm()) << "rank " << k;
+    }
+    // All 30 components give the centred matrix back.
+    const Factors all = untransformed_factors(rows, maps, {svd}, {30})[0];
+    Eigen::MatrixXd centred = m.cast<double>();
+    for (int r = 0; r < 30; ++r) centred.row(r).array() -= svd.mean[r];
+    EXPECT_LT((all.a.cast<double>() * all.b.cast<double>().transpose() - centred).norm(),
+              1e-3 * centred.norm());
+}
+
+TEST(TransformedSvd, RejectsAZeroSingularValue) {
+    const Matrix m = Matrix::Zero(6, 8);
+    const DenseTransforms maps(invertible(6, 1), invertible(8, 2));
+    MemoryRows rows({&m}, 3);
+    const Svd svd = exact_svd(m, 2, false);
+    try {
+        untransformed_factors(rows, maps, {svd}, {2});
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_STREQ(e.what(), "untransformed factors: SVD 0 keeps a zero singular value");
+    }
 }
 
 }  // namespace

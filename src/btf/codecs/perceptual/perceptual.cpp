@@ -1,0 +1,331 @@
+// perceptual — perceptually guided factorization (Guthe, Müller, Schneider, Klein 2009,
+// "BTF-CIELab", §5).
+//
+// The BTF in CIELab as three matrices, one per plane L*, a*, b* (rows: view · nL + light,
+// columns: texels). Plain factorization minimizes the squared error of every sample alike; here
+// each plane is first weighted by the contrast sensitivity of the eye, a spatial filter T_u on
+// every image and an angular filter T_v over the (view, light) pairs (csf.h; Table 2 of the paper,
+// the achromatic CSF for L*, the chromatic one for a* and b*), and the filtered matrices
+//     Ã = T_v · A · T_uᵀ
+// are factorized: the Frobenius norm of Ã − Ã_k is the linearized perceptual error, so the
+// truncation keeps what the eye sees and drops what it does not (fine chroma detail first).
+//
+// Untransformed recovery (§5.4): the filters are never inverted. With Ã ≈ P Σ Qᵀ (P: ABRDFs,
+// Q: textures of the filtered planes), one more streaming pass accumulates
+//     a = A T_uᵀ Q Σ⁻¹        b = Aᵀ T_vᵀ P
+// so that value = a · bᵀ with T_v a bᵀ T_uᵀ = P Σ Qᵀ exactly for an exact SVD
+// (factor::untransformed_factors). The factors are neither orthogonal nor normalized; σ of the
+// filtered planes is kept as each component's energy, so a package prefix adds components in
+// decreasing perceptual energy.
+//
+// Components: `components` in total, each going to the plane with the largest next filtered
+// singular value (§5.1), i.e. the allocation that minimizes the total perceptual error.
+//
+// Mean: with mean=true each row's mean over the texels (the mean ABRDF) is subtracted before
+// filtering and stored unfiltered; the spatial filter keeps constants (DC gain 1, periodic), so
+// filtering the centred matrix equals centring the filtered one.
+//
+// High-frequency omission (§5.3): for quality (bq) < 1 each component's eigen-texture may be
+// stored at 1/2, 1/4, … of the extent per axis (a spatial level of the shared model, up-sampled
+// bilinearly by the evaluator): the least-squares down-sampling of its untransformed texture,
+// chosen per component in decreasing σ by the paper's score
+//     s = bq / (1 − bq) · log(q_new − q_old) − log(bytes),   q = E / e² − 1,
+// E the filtered energy (in the sketched subspace) and e² the filtered error left (see
+// choose_levels). Components of one plane and level form one block.
+//
+// Decoding: planes interpolate like every factor model (bilinear in space, barycentric over
+// views and lights) and convert to linear RGB by btf::lab_to_rgb after interpolation.
+//
+// Parameters (btf codecs perceptual):
+//   components=32       total over the three planes
+//   resolution=10       texels per degree of visual angle, [1, 1000] (the paper's range 2–100)
+//   speed=100           angular speed ω in degrees per second, [1, 10000] (the paper's 10–1000)
+//   mean=false          subtract the mean ABRDF before filtering (stored unfiltered)
+//   csf=true            false: no filters, plain factorization of the CIELab planes (the
+//                       unweighted baseline: same colour space, allocation and package)
+//   quality=1           base quality bq of high-frequency omission, [0, 1]; 1: none
+//   max-level=3         coarsest eigen-texture level omission may choose (1/2^level per axis)
+//   oversampling=10, power-iterations=3, seed=1   randomized SVD settings
+//   quantize=f16        factor storage: f32, f16, u8
+
+#include "btf/codecs/perceptual/perceptual.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "btf/codecs/perceptual/resample.h"
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace btf {
+
+namespace perceptual {
+
+namespace {
+
+constexpr const char* kName = "perceptual";
+
+// No filtering (csf=false).
+class Identity final : public factor::Transforms {
+  public:
+    void left(int, factor::Matrix&, bool) const override {}
+    void right(int, factor::Matrix&, bool) const override {}
+};
+
+std::vector<ParamInfo> parameters() {
+    std::vector<ParamInfo> p = {
+        {"components", "32",
+         "components kept in total over the L*, a*, b* planes (allocated by perceptual energy)"},
+        {"resolution", "10",
+         "viewing: texels per degree of visual angle, in [1, 1000] (paper's range 2-100)"},
+        {"speed", "100",
+         "viewing: angular speed in degrees per second, in [1, 10000] (paper's range 10-1000)"},
+        {"mean", "false", "subtract the mean ABRDF before filtering (stored unfiltered)"},
+        {"csf", "true",
+         "weight by the CSF filters; false: plain factorization of the CIELab planes (baseline)"},
+        {"quality", "1",
+         "base quality bq in [0, 1] of high-frequency omission: 1 keeps every eigen-texture at "
+         "full resolution, lower values store more of them at reduced resolution"},
+        {"max-level", "3",
+         "coarsest eigen-texture resolution omission may choose: 1/2^level per axis, in [0, 8]"},
+        {"oversampling", "10", "extra random vectors of the randomized SVD"},
+        {"power-iterations", "3", "power iterations of the randomized SVD (2 passes each)"},
+        {"seed", "1", "random seed"},
+    };
+    for (ParamInfo& q : factor::quantization_params()) p.push_back(std::move(q));
+    return p;
+}
+
+}  // namespace
+
+Options parse_options(const Params& params) {
+    Options o;
+    o.components = params.get_int("components", o.components, 1, 4096);
+    o.viewing.resolution = params.get_double("resolution", o.viewing.resolution, 1, 1000);
+    o.viewing.speed = params.get_double("speed", o.viewing.speed, 1, 10000);
+    o.subtract_mean = params.get_bool("mean", false);
+    o.csf = params.get_bool("csf", true);
+    o.quality = params.get_double("quality", o.quality, 0, 1);
+    o.max_level = params.get_int("max-level", o.max_level, 0, 8);
+    o.oversampling = params.get_int("oversampling", o.oversampling, 0, 1024);
+    o.power_iterations = params.get_int("power-iterations", o.power_iterations, 0, 64);
+    o.seed = static_cast<uint64_t>(params.get_int("seed", 1, 0, 1 << 30));
+    o.quantization = factor::parse_quantization(params.get_string("quantize", "f16"));
+    params.check_all_used(kName, parameters());
+    return o;
+}
+
+namespace {
+
+// Levels 1..n that divide the extent, n ≤ max_level.
+int usable_levels(int width, int height, int max_level) {
+    int n = 0;
+    while (n < max_level && width % (2 << n) == 0 && height % (2 << n) == 0) ++n;
+    return n;
+}
+
+// A kept component: its plane, its index in the plane's factors, its filtered singular value.
+struct Item {
+    int plane = 0, k = 0;
+    float sigma = 0;
+};
+
+// High-frequency omission (§5.3): the spatial level of every component's eigen-texture. Each
+// level's texture is the least-squares down-sampling D b of the untransformed texture b, which is
+// what accumulating down-sampled untransformed basis textures gives (§5.4); its perceptual cost
+// is lost = ‖T_u (b − B D b)‖² (the filtered ABRDFs are orthonormal, so the costs of different
+// components add). In decreasing σ the greedy choice maximizes
+//     s(r) = bq / (1 − bq) · log(q(ρ_i^r) − q_{i−1}) − log m(r),
+// q = E / e² − 1 the signal-to-noise energy ratio of the filtered BTF (E its energy, e² the
+// remaining error), m(r) the bytes of the component at level r.
+std::vector<int> choose_levels(const std::vector<Item>& items,
+                               const std::vector<factor::Factors>& factors,
+                               const CsfTransforms* transforms, const factor::Model& model,
+                               const Options& options, double energy,
+                               std::vector<double>& lost_out) {
+    const int levels = usable_levels(model.width, model.height, options.max_level);
+    std::vector<int> chosen(items.size(), 0);
+    lost_out.assign(items.size(), 0.0);
+    if (options.quality >= 1 || levels == 0 || items.empty() || !(energy > 0)) return chosen;
+    std::vector<std::unique_ptr<LevelResampler>> resamplers;  // levels 1..n; not copyable
+    for (int j = 1; j <= levels; ++j)
+        resamplers.push_back(std::make_unique<LevelResampler>(model.width, model.height, j));
+
+    // lost[i · levels + j − 1] for levels j ≥ 1: residuals of every item and level, filtered.
+    const int64_t texels = int64_t(model.width) * model.height;
+    std::vector<double> lost(items.size() * levels, 0.0);
+    for (int p = 0; p < 3; ++p) {
+        std::vector<size_t> mine;
+        for (size_t i = 0; i < items.size(); ++i)
+            if (items[i].plane == p) mine.push_back(i);
+        if (mine.empty()) continue;
+        factor::Matrix residual(texels, int64_t(mine.size()) * levels);
+        parallel_for(0, int64_t(mine.size()) * levels, [&](int64_t col) {
+            const Item& item = items[mine[size_t(col / levels)]];
+            const LevelResampler& r = *resamplers[size_t(col % levels)];
+            const Eigen::VectorXd b = factors[p].b.col(item.k).cast<double>();
+            residual.col(col) = (b - r.upsample(r.downsample(b))).cast<float>();
+        });
+        if (transforms) transforms->spatial(p).apply(residual);
+        for (size_t m = 0; m < mine.size(); ++m)
+            for (int j = 0; j < levels; ++j)
+                lost[mine[m] * levels + j] =
+                    residual.col(int64_t(m) * levels + j).cast<double>().squaredNorm();
+    }
+
+    const double weight = options.quality / (1 - options.quality);
+    const double floor = 1e-12 * energy;
+    const int64_t rows = model.rows(0);
+    double error = energy, quality = 0;
+    for (size_t i = 0; i < items.size(); ++i) {
+        const double sigma2 = double(items[i].sigma) * items[i].sigma;
+        double best = -std::numeric_limits<double>::infinity(), best_error = error;
+        for (int j = 0; j <= levels; ++j) {
+            const double cost = j == 0 ? 0.0 : lost[i * levels + j - 1];
+            const double remaining = std::max(error - (sigma2 - cost), floor);
+            const double gain = energy / remaining - 1 - quality;
+            if (!(gain > 0)) continue;
+            const double bytes =
+                double(factor::column_bytes(options.quantization, rows) +
+                       factor::column_bytes(options.quantization,
+                                            int64_t(model.level_width(j)) * model.level_height(j)));
+            const double score = weight * std::log(gain) - std::log(bytes);
+            if (score > best) {
+                best = score;
+                chosen[i] = j;
+                best_error = remaining;
+                lost_out[i] = cost;
+            }
+        }
+        error = best_error;
+        quality = energy / error - 1;
+    }
+    return chosen;
+}
+
+}  // namespace
+
+factor::Model factorize(const BtfSource& source, const Options& options, Progress& progress,
+                        OmissionReport* report) {
+    factor::ColourHandling colour;
+    colour.basis = factor::ColourBasis::kLab;
+    factor::Model model = factor::model_for(source, colour, kName);
+    const factor::SourceRows rows(source, colour, model.groups);
+    const CsfTransforms csf(model.sampling, model.width, model.height, options.viewing);
+    const Identity identity;
+    const factor::Transforms& transforms =
+        options.csf ? static_cast<const factor::Transforms&>(csf) : identity;
+
+    factor::SvdOptions svd;
+    svd.rank = options.components;
+    svd.oversampling = options.oversampling;
+    svd.power_iterations = options.power_iterations;
+    svd.subtract_mean = options.subtract_mean;
+    svd.seed = options.seed;
+    svd.transforms = &transforms;
+    const std::vector<factor::Svd> planes = factor::randomized_svd(rows, svd, progress);
+
+    std::vector<const factor::Svd*> pointers;
+    for (const factor::Svd& plane : planes) pointers.push_back(&plane);
+    const std::vector<int> keep = factor::allocate_components(pointers, options.components);
+    const std::vector<factor::Factors> factors =
+        factor::untransformed_factors(rows, transforms, planes, keep, progress);
+
+    // The kept components in decreasing σ over the planes (the allocation's order).
+    std::vector<Item> items;
+    for (int p = 0; p < 3; ++p)
+        for (int k = 0; k < keep[p]; ++k) items.push_back({p, k, planes[p].sigma[k]});
+    std::stable_sort(items.begin(), items.end(),
+                     [](const Item& a, const Item& b) { return a.sigma > b.sigma; });
+    double energy = 0;
+    for (const factor::Svd& plane : planes) energy += plane.sketch_energy;
+    std::vector<double> lost;
+    const std::vector<int> level =
+        choose_levels(items, factors, options.csf ? &csf : nullptr, model, options, energy, lost);
+
+    // Blocks per plane and level; each keeps its components in decreasing σ.
+    model.levels = 1 + (level.empty() ? 0 : *std::max_element(level.begin(), level.end()));
+    std::vector<std::vector<size_t>> members(size_t(3) * model.levels);
+    for (size_t i = 0; i < items.size(); ++i)
+        members[size_t(items[i].plane) * model.levels + level[i]].push_back(i);
+    for (int p = 0; p < 3; ++p)
+        for (int j = 0; j < model.levels; ++j) {
+            const std::vector<size_t>& m = members[size_t(p) * model.levels + j];
+            factor::Block block;
+            block.plane = p;
+            block.level = j;
+            if (j == 0) block.mean = planes[p].mean;
+            const int64_t texels = int64_t(model.level_width(j)) * model.level_height(j);
+            block.a.resize(factors[p].a.rows(), int64_t(m.size()));
+            block.b.resize(texels, int64_t(m.size()));
+            std::unique_ptr<LevelResampler> resampler;
+            if (j > 0) resampler = std::make_unique<LevelResampler>(model.width, model.height, j);
+            for (size_t c = 0; c < m.size(); ++c) {
+                const Item& item = items[m[c]];
+                block.a.col(int64_t(c)) = factors[p].a.col(item.k);
+                if (j == 0)
+                    block.b.col(int64_t(c)) = factors[p].b.col(item.k);
+                else
+                    block.b.col(int64_t(c)) =
+                        resampler->downsample(factors[p].b.col(item.k).cast<double>())
+                            .cast<float>();
+                block.energy.push_back(item.sigma);
+            }
+            model.blocks.push_back(std::move(block));
+        }
+    model.validate(kName);
+    if (report) {
+        report->energy = energy;
+        report->components.clear();
+        for (size_t i = 0; i < items.size(); ++i)
+            report->components.push_back({items[i].plane, items[i].sigma, level[i], lost[i]});
+    }
+    return model;
+}
+
+}  // namespace perceptual
+
+namespace {
+
+class PerceptualCodec final : public factor::FactorCodec {
+  public:
+    std::string_view name() const override { return perceptual::kName; }
+    std::string_view description() const override {
+        return "factorization in CIELab weighted by the eye's contrast sensitivity (BTF-CIELab)";
+    }
+    std::vector<ParamInfo> params() const override { return perceptual::parameters(); }
+
+  protected:
+    Result factorize(const BtfSource& source, const Params& params,
+                     Progress& progress) const override {
+        const perceptual::Options o = perceptual::parse_options(params);
+        Result result;
+        result.model = perceptual::factorize(source, o, progress);
+        result.params = {{"components", o.components},
+                         {"resolution", o.viewing.resolution},
+                         {"speed", o.viewing.speed},
+                         {"mean", o.subtract_mean},
+                         {"csf", o.csf},
+                         {"quality", o.quality},
+                         {"max-level", o.max_level},
+                         {"oversampling", o.oversampling},
+                         {"power-iterations", o.power_iterations},
+                         {"seed", o.seed},
+                         {"quantize", factor::to_string(o.quantization)}};
+        result.quantization = o.quantization;
+        return result;
+    }
+};
+
+}  // namespace
+
+const Codec& perceptual_codec() {
+    static const PerceptualCodec codec;
+    return codec;
+}
+
+}  // namespace btf
