@@ -15,7 +15,7 @@ packages=(
   libtbb-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev
   libxxhash-dev libzstd-dev libdeflate-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
   python3 python3-h5py python3-numpy
 )
 if [ "${1:-}" = "--bench" ]; then

@@ -16,9 +16,13 @@
 
 namespace btf::cli {
 
+/// What `btf --version` prints and reports name as their writer.
+constexpr const char* kVersion = "btfkit 0.1.0";
+
 struct GlobalOptions {
-    int threads = 0;     // 0 = all cores
-    bool quiet = false;  // no progress output
+    int threads = 0;           // 0 = all cores
+    bool quiet = false;        // no progress output
+    std::string command_line;  // as typed (shell-quoted where needed), for reports
 };
 
 /// A Progress that draws a bar on a terminal (stderr) and prints plain lines otherwise.
@@ -87,5 +91,7 @@ Command register_codecs(CLI::App& app, GlobalOptions& global);
 Command register_compress(CLI::App& app, GlobalOptions& global);
 Command register_decompress(CLI::App& app, GlobalOptions& global);
 Command register_eval(CLI::App& app, GlobalOptions& global);
+Command register_quality(CLI::App& app, GlobalOptions& global);
+Command register_report(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli
