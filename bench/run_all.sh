@@ -14,3 +14,6 @@ echo; echo "## codecs: fmf accuracy against the exact SVD"; "$build/fmf_accuracy
 echo; echo "## codecs: fmf compression speed (vs scikit-learn)"; "$build/fmf_speed"
 echo; echo "## codecs: evaluation throughput"; "$build/eval_bench"
 echo; echo "## codecs: rate–distortion"; "$build/rate_distortion"
+echo; echo "## quality: per-image measures throughput"; "$build/quality_bench" --size 128 --threads 2
+echo; echo "## quality: BTF-CIELab wall time and memory"; "$build/btf_cielab_bench" --size 256 --grid 5
+echo; echo "## quality: perceptual vs fmf at equal size"; bash "$(dirname "$0")/perceptual_vs_fmf.sh" "$build" 16 64 3
