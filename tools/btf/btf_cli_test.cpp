@@ -18,30 +18,15 @@
 #include "btf/core/image.h"
 #include "btf/io/open.h"
 #include "btf/io/package.h"
+#include "btf/testing/cli.h"
 
 namespace btf {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CliResult {
-    int code = -1;
-    std::string output;  // stdout and stderr together
-};
-
-CliResult run(const std::string& args) {
-    const std::string command = std::string(BTF_TOOL_PATH) + " --quiet " + args + " 2>&1";
-    CliResult result;
-    FILE* pipe = ::popen(command.c_str(), "r");
-    if (!pipe) return result;
-    std::array<char, 4096> buffer;
-    size_t n;
-    while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-        result.output.append(buffer.data(), n);
-    const int status = ::pclose(pipe);
-    result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return result;
-}
+using test::CliResult;
+using test::run;
 
 class BtfCli : public testing::Test {
   protected:
