@@ -14,7 +14,7 @@ namespace btf::quality {
 namespace {
 constexpr float kEpsilon = 216.0f / 24389.0f;  // (6/29)³
 constexpr float kKappa = 24389.0f / 27.0f;     // (29/3)³
-constexpr float kWhite[3] = {0.95047f, 1.0f, 1.08883f};
+constexpr float kWhite[3] = {float(kWhiteD65.x), float(kWhiteD65.y), float(kWhiteD65.z)};
 
 inline float lab_f(float t) {
     const float root = std::cbrt(t);  // computed unconditionally: a select, not a branch

@@ -31,6 +31,7 @@
 #include <numbers>
 #include <system_error>
 
+#include "btf/codecs/perceptual/csf.h"
 #include "btf/core/color.h"
 #include "btf/core/image.h"
 #include "btf/io/source.h"
@@ -108,8 +109,8 @@ void spatial_transfer(const Gaussian& g, double resolution, const Direction& vie
 }
 
 // One angular filter: row-normalized Gaussian weights exp(−d²/(δω)²) between the directions of a
-// set (d the great-circle angle in degrees), stored sparsely: entries below 1e-6 of a row's
-// largest are dropped (then renormalized), so a narrow kernel costs nothing.
+// set (d the great-circle angle in degrees), stored sparsely so that a narrow kernel costs
+// nothing; a row whose only weight is its own direction is the identity and is skipped.
 struct AngularFilter {
     bool identity = true;
     std::vector<std::vector<std::pair<int, float>>> rows;
@@ -120,25 +121,18 @@ struct AngularFilter {
 };
 
 AngularFilter angular_filter(const DirectionSet& set, double width_deg) {
+    // The same discrete Gaussian as the perceptual codec's CSF (great-circle angle, rows
+    // normalized to 1); weights below 1e-6 of a row's diagonal are dropped.
+    const Eigen::MatrixXd kernel = perceptual::angular_kernel(set, width_deg);
     AngularFilter f;
     const int n = set.size();
     f.rows.resize(size_t(n));
-    for (int i = 0; i < n; ++i) {
-        std::vector<std::pair<int, double>> row;
-        double sum = 0;
+    for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
-            const double c = std::clamp(dot(set.vector(i), set.vector(j)), -1.0, 1.0);
-            const double d = degrees(std::acos(c)) / width_deg;
-            const double w = std::exp(-d * d);
-            if (w < 1e-6) continue;
-            row.emplace_back(j, w);
-            sum += w;
-        }
-        for (auto& [j, w] : row) {
-            f.rows[size_t(i)].emplace_back(j, float(w / sum));
+            if (kernel(i, j) < 1e-6 * kernel(i, i)) continue;
+            f.rows[size_t(i)].emplace_back(j, float(kernel(i, j)));
             if (j != i) f.identity = false;
         }
-    }
     size_t nonzero = 0;
     for (const auto& row : f.rows) nonzero += row.size();
     if (nonzero > 6 * size_t(n)) {
