@@ -20,6 +20,10 @@ ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
             "{}: colour handling '{}' has no DFMF colour model (DFMF takes per-channel or model11)",
             what, factor::to_string(model.colour.basis));
     check(!model.colour.log, "{}: log colour has no DFMF colour model", what);
+    check(model.levels == 1 && model.angular_levels.empty(),
+          "{}: eigen-textures or eigen-ABRDFs at reduced resolution; DFMF holds full-resolution "
+          "factors",
+          what);
     check(model.groups.size() == 1 && model.clusters == 1,
           "{}: {} view groups and {} texel clusters; DFMF holds one factorization per channel",
           what, model.groups.size(), model.clusters);

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "btf/codecs/perceptual/csf.h"
 #include "btf/core/color.h"
 #include "btf/io/function_source.h"
 #include "btf/quality/metrics.h"
@@ -115,6 +116,48 @@ TEST(BtfCielab, AngularStructureMattersWherePerImageMetricsSeeNone) {
     EXPECT_NEAR(slow_ratio, 1.0, 0.1);
     // Fast motion: the temporal low-pass averages the flicker away, not the steady offset.
     EXPECT_LT(fast_ratio, 0.6);
+}
+
+// The form of the same point: blur the BTF over the light directions (a Gaussian of
+// σ = 10° on the 81 ubo81 lights, removing the highlight's angular detail) and compare it with a
+// steady brightness change whose per-image mean ΔE00 is the same. Seen slowly both are equally
+// visible; under fast motion the eye's band-pass response to angular (temporal) change makes the
+// blur the larger error, which the per-image metric on the same frames cannot show.
+TEST(BtfCielab, AngularBlurIsSeenUnderMotionBeyondItsPerImageError) {
+    const Sampling sampling{DirectionSet::ubo81().subset({0, 1, 2, 3, 4, 5, 6}, "views"),
+                            DirectionSet::ubo81()};
+    const FunctionSource ref = smooth(sampling, 16);
+    const Eigen::MatrixXd kernel = perceptual::angular_kernel(sampling.lights, 10);
+    const FunctionSource blur(sampling, 16, 16, [&](int v, int l, int x, int y) {
+        double r = 0, g = 0, b = 0;
+        for (int j = 0; j < sampling.num_lights(); ++j) {
+            const Rgb c = ref.value(v, j, x, y);
+            r += kernel(l, j) * c.r;
+            g += kernel(l, j) * c.g;
+            b += kernel(l, j) * c.b;
+        }
+        return Rgb{float(r), float(g), float(b)};
+    });
+    const double de_blur = compare(ref, blur).de2000_mean;
+    ASSERT_GT(de_blur, 0.2);
+    // ΔE00 of a small steady scaling is close to linear in its size: match the blur's.
+    const double unit =
+        compare(ref, scaled(ref, [](int, int, int, int) { return 1.01; })).de2000_mean;
+    const double amount = 0.01 * de_blur / unit;
+    const FunctionSource steady = scaled(ref, [amount](int, int, int, int) { return 1 + amount; });
+    EXPECT_NEAR(compare(ref, steady).de2000_mean / de_blur, 1.0, 0.03);
+
+    BtfCielabOptions slow, fast;
+    slow.conditions = {{10, 10}};
+    fast.conditions = {{300, 10}};
+    const double blur_slow = btf_cielab(ref, blur, slow).headline().mean;
+    const double blur_fast = btf_cielab(ref, blur, fast).headline().mean;
+    const double steady_slow = btf_cielab(ref, steady, slow).headline().mean;
+    const double steady_fast = btf_cielab(ref, steady, fast).headline().mean;
+    EXPECT_NEAR(blur_slow / steady_slow, 1.0, 0.1);
+    EXPECT_GT(blur_fast / steady_fast, 1.3);
+    EXPECT_GT(blur_fast / blur_slow, 1.3);      // the blur's error grows with motion…
+    EXPECT_LT(steady_fast / steady_slow, 1.0);  // …the steady change's does not
 }
 
 TEST(BtfCielab, IndependentOfThreadCountAndOfSpilling) {

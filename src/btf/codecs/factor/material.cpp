@@ -101,24 +101,39 @@ struct FactorMaterial::Impl {
                 group_of_view[m.groups[g][s]] = g;
                 slot_of_view[m.groups[g][s]] = static_cast<int>(s);
             }
-        blocks.resize(m.blocks.size());
-        for (size_t i = 0; i < m.blocks.size(); ++i) {
-            const Block& src = m.blocks[i];
+        // The blocks of all angular levels of a (plane, group, cluster, level) become one: their
+        // a columns up-sampled to every (view, light) pair, side by side.
+        const int angular = m.angular_count();
+        blocks.resize(m.blocks.size() / size_t(angular));
+        std::vector<AngularResampler> resamplers;
+        for (const AngularLevel& level : m.angular_levels)
+            resamplers.emplace_back(m.sampling, level, channels);
+        for (size_t i = 0; i < blocks.size(); ++i) {
             BlockData& d = blocks[i];
-            d.k = src.components();
+            const Block& first = m.blocks[i * angular];
+            for (int j = 0; j < angular; ++j) d.k += m.blocks[i * angular + j].components();
             if (d.k > kMaxComponents)
-                fail("factor model: block {} has {} components (at most {})", i, d.k,
+                fail("factor model: block {} has {} components (at most {})", i * angular, d.k,
                      kMaxComponents);
             d.kp = padded(d.k);
             max_kp = std::max(max_kp, d.kp);
-            d.a.assign(src.a.rows() * d.kp, 0.0f);
-            d.b.assign(src.b.rows() * d.kp, 0.0f);
-            for (int64_t r = 0; r < src.a.rows(); ++r)
-                for (int k = 0; k < d.k; ++k) d.a[r * d.kp + k] = src.a(r, k);
-            for (int64_t r = 0; r < src.b.rows(); ++r)
-                for (int k = 0; k < d.k; ++k) d.b[r * d.kp + k] = src.b(r, k);
-            d.mean = src.mean.empty() ? std::vector<float>(src.a.rows(), 0.0f) : src.mean;
-            d.has_mean = !src.mean.empty();
+            const int64_t rows = m.rows(first.group);
+            d.a.assign(rows * d.kp, 0.0f);
+            d.b.assign(first.b.rows() * d.kp, 0.0f);
+            for (int j = 0, k0 = 0; j < angular; ++j) {
+                const Block& src = m.blocks[i * angular + j];
+                if (src.components() == 0) continue;
+                const Matrix a =
+                    j == 0 ? src.a
+                           : resamplers[size_t(j - 1)].upsample(src.a.cast<double>()).cast<float>();
+                for (int64_t r = 0; r < rows; ++r)
+                    for (int k = 0; k < src.components(); ++k) d.a[r * d.kp + k0 + k] = a(r, k);
+                for (int64_t r = 0; r < src.b.rows(); ++r)
+                    for (int k = 0; k < src.components(); ++k) d.b[r * d.kp + k0 + k] = src.b(r, k);
+                k0 += src.components();
+            }
+            d.mean = first.mean.empty() ? std::vector<float>(size_t(rows), 0.0f) : first.mean;
+            d.has_mean = !first.mean.empty();
         }
     }
 

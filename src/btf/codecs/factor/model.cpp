@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <tuple>
 
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/color.h"
@@ -150,8 +151,37 @@ Rgb ColourHandling::inverse(const Rgb& p) const {
 
 // ---- model -----------------------------------------------------------------------------------
 
+namespace {
+
+// What is wrong with the angular levels of a sampling, or "".
+std::string angular_levels_problem(const std::vector<AngularLevel>& levels,
+                                   const Sampling& sampling) {
+    for (size_t m = 0; m < levels.size(); ++m)
+        for (const auto& [list, set, name] :
+             {std::tuple{&levels[m].views, &sampling.views, "views"},
+              std::tuple{&levels[m].lights, &sampling.lights, "lights"}}) {
+            if (static_cast<int>(list->size()) < kMinAngularDirections)
+                return fmt::format("angular level {} keeps {} {} (at least {})", m + 1,
+                                   list->size(), name, kMinAngularDirections);
+            for (size_t i = 0; i < list->size(); ++i)
+                if ((*list)[i] < 0 || (*list)[i] >= set->size() ||
+                    (i > 0 && (*list)[i] <= (*list)[i - 1]))
+                    return fmt::format("angular level {} {} must be ascending indices below {}",
+                                       m + 1, name, set->size());
+        }
+    return {};
+}
+
+}  // namespace
+
 int64_t Model::rows(int group) const {
     return int64_t(groups[group].size()) * sampling.num_lights() * colour.channels();
+}
+
+int64_t Model::block_rows(int group, int angular) const {
+    if (angular == 0) return rows(group);
+    const AngularLevel& level = angular_levels[size_t(angular - 1)];
+    return int64_t(level.views.size()) * int64_t(level.lights.size()) * colour.channels();
 }
 
 std::vector<std::vector<int32_t>> Model::cluster_texels() const {
@@ -202,16 +232,31 @@ void Model::validate(const std::string& what) const {
             fail("{}: {} spatial levels need width and height divisible by {} ({}×{})", what,
                  levels, step, width, height);
     }
-    const int64_t expected = int64_t(colour.planes()) * groups.size() * clusters * levels;
+    if (angular_levels.size() > 15)
+        fail("{}: {} angular levels (at most 15)", what, angular_levels.size());
+    if (!angular_levels.empty()) {
+        bool in_order = groups.size() == 1;
+        for (size_t s = 0; in_order && s < groups[0].size(); ++s)
+            in_order = groups[0][s] == static_cast<int>(s);
+        if (!in_order)
+            fail("{}: angular levels need one view group with the views in order ({} groups)", what,
+                 groups.size());
+        const std::string problem = angular_levels_problem(angular_levels, sampling);
+        if (!problem.empty()) fail("{}: {}", what, problem);
+    }
+    const int64_t expected =
+        int64_t(colour.planes()) * groups.size() * clusters * levels * angular_count();
     if (static_cast<int64_t>(blocks.size()) != expected)
         fail("{}: {} blocks, expected {}", what, blocks.size(), expected);
     const auto texels = cluster_texels();
     for (size_t i = 0; i < blocks.size(); ++i) {
         const Block& b = blocks[i];
-        if (b.level < 0 || b.level >= levels ||
-            block_index(b.plane, b.group, b.cluster, b.level) != static_cast<int>(i))
+        if (b.level < 0 || b.level >= levels || b.angular < 0 || b.angular >= angular_count() ||
+            block_index(b.plane, b.group, b.cluster, b.level, b.angular) != static_cast<int>(i))
             fail("{}: block {} is out of order", what, i);
-        const int64_t rows = this->rows(b.group);
+        if (b.angular > 0 && !b.mean.empty())
+            fail("{}: block {} of angular level {} has row means", what, i, b.angular);
+        const int64_t rows = block_rows(b.group, b.angular);
         if (b.a.rows() != rows || b.b.rows() != block_texels(texels, b.cluster, b.level) ||
             b.a.cols() != b.b.cols() || static_cast<int>(b.energy.size()) != b.components() ||
             (!b.mean.empty() && static_cast<int64_t>(b.mean.size()) != rows))
@@ -373,6 +418,12 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     m["clusters"] = model.clusters;
     // Single-level models keep the header they always had (no "levels", no block "level").
     if (model.levels > 1) m["levels"] = model.levels;
+    if (!model.angular_levels.empty()) {
+        nlohmann::json levels = nlohmann::json::array();
+        for (const AngularLevel& a : model.angular_levels)
+            levels.push_back({{"views", a.views}, {"lights", a.lights}});
+        m["angular_levels"] = levels;
+    }
     nlohmann::json blocks = nlohmann::json::array();
     for (const Block& b : model.blocks) {
         blocks.push_back({{"plane", b.plane},
@@ -382,6 +433,7 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
                           {"mean", !b.mean.empty()},
                           {"energy", b.energy}});
         if (model.levels > 1) blocks.back()["level"] = b.level;
+        if (!model.angular_levels.empty()) blocks.back()["angular"] = b.angular;
     }
     m["blocks"] = blocks;
     h["model"] = m;
@@ -457,6 +509,16 @@ Model from_package(const Package& package) {
               model.height % (1 << (model.levels - 1)) != 0)))
             fail("{} spatial levels for {}×{} texels in {} clusters", model.levels, model.width,
                  model.height, model.clusters);
+        if (m.contains("angular_levels")) {
+            for (const auto& a : m.at("angular_levels"))
+                model.angular_levels.push_back({a.at("views").get<std::vector<int>>(),
+                                                a.at("lights").get<std::vector<int>>()});
+            if (model.angular_levels.empty() || model.angular_levels.size() > 15)
+                fail("{} angular levels", model.angular_levels.size());
+            const std::string problem =
+                angular_levels_problem(model.angular_levels, model.sampling);
+            if (!problem.empty()) fail("{}", problem);
+        }
         const int64_t texels = int64_t(model.width) * model.height;
         if (model.clusters > 1) {
             if (const PackageSection* s = package.find("clusters")) {
@@ -471,11 +533,14 @@ Model from_package(const Package& package) {
         }
         const auto& blocks = m.at("blocks");
         const int planes = model.colour.planes();
-        if (static_cast<int64_t>(blocks.size()) != int64_t(planes) *
-                                                       static_cast<int64_t>(model.groups.size()) *
-                                                       model.clusters * model.levels)
-            fail("{} blocks for {} planes × {} groups × {} clusters × {} levels", blocks.size(),
-                 planes, model.groups.size(), model.clusters, model.levels);
+        if (static_cast<int64_t>(blocks.size()) !=
+            int64_t(planes) * static_cast<int64_t>(model.groups.size()) * model.clusters *
+                model.levels * model.angular_count())
+            fail("{} blocks for {} planes × {} groups × {} clusters × {} levels{}", blocks.size(),
+                 planes, model.groups.size(), model.clusters, model.levels,
+                 model.angular_levels.empty()
+                     ? std::string()
+                     : fmt::format(" × {} angular levels", model.angular_count()));
         std::vector<int> declared(blocks.size());
         model.blocks.resize(blocks.size());
         // Validate groups and clusters before sizing blocks from them.
@@ -485,11 +550,13 @@ Model from_package(const Package& package) {
             b.group = blocks[i].at("group").get<int>();
             b.cluster = blocks[i].at("cluster").get<int>();
             b.level = blocks[i].value("level", 0);
+            b.angular = blocks[i].value("angular", 0);
             declared[i] = blocks[i].at("components").get<int>();
             if (b.plane < 0 || b.plane >= planes || b.group < 0 ||
                 b.group >= static_cast<int>(model.groups.size()) || b.cluster < 0 ||
                 b.cluster >= model.clusters || b.level < 0 || b.level >= model.levels ||
-                declared[i] < 0 || declared[i] > 4096)
+                b.angular < 0 || b.angular >= model.angular_count() || declared[i] < 0 ||
+                declared[i] > 4096)
                 fail("block {} is out of range", i);
         }
         const auto texel_lists = model.cluster_texels();
@@ -499,7 +566,7 @@ Model from_package(const Package& package) {
             blocks.size());  // [block][k]: a then b
         for (size_t i = 0; i < blocks.size(); ++i) {
             Block& b = model.blocks[i];
-            const int64_t rows = model.rows(b.group);
+            const int64_t rows = model.block_rows(b.group, b.angular);
             if (blocks[i].at("mean").get<bool>()) {
                 b.mean.assign(rows, 0.0f);
                 if (means) {
@@ -522,7 +589,8 @@ Model from_package(const Package& package) {
             if (block < 0 || block >= static_cast<int>(blocks.size()) || k != present[block] ||
                 k >= declared[block])
                 fail("component section '{}' is out of order or undeclared", s.name);
-            const int64_t rows = model.rows(model.blocks[block].group);
+            const int64_t rows =
+                model.block_rows(model.blocks[block].group, model.blocks[block].angular);
             const int64_t cols = model.block_texels(texel_lists, model.blocks[block].cluster,
                                                     model.blocks[block].level);
             if (s.data.size() != column_bytes(q, rows) + column_bytes(q, cols))
@@ -539,7 +607,7 @@ Model from_package(const Package& package) {
                 fail("block {} declares {} components but {} energies", i, declared[i],
                      energy.size());
             b.energy.assign(energy.begin(), energy.begin() + k);
-            b.a.resize(model.rows(b.group), k);
+            b.a.resize(model.block_rows(b.group, b.angular), k);
             b.b.resize(model.block_texels(texel_lists, b.cluster, b.level), k);
             for (int c = 0; c < k; ++c) {
                 const uint8_t* in = sections[i][c]->data.data();

@@ -25,6 +25,12 @@
 /// the model's value at texel (x, y) is the bilinear, wrapping up-sampling of that grid, whose
 /// texel centres lie at ((i + 0.5) · 2^j − 0.5) in full-resolution texel units. Levels need one
 /// texel cluster and width and height divisible by 2^(levels − 1).
+///
+/// Angular levels: a block of angular level m ≥ 1 stores a on the directions of
+/// angular_levels[m − 1] (views × lights of that subset, rows (view' · nL' + light') · channels +
+/// channel); its value at every (view, light) is the up-sampling U of angular_levels.h, applied
+/// once when a FactorMaterial is built. Angular levels need one view group holding the views in
+/// order, and such blocks have no row means.
 
 #include <array>
 #include <memory>
@@ -32,6 +38,7 @@
 #include <vector>
 
 #include "btf/codecs/codec.h"
+#include "btf/codecs/factor/angular_levels.h"
 #include "btf/codecs/factor/rsvd.h"
 #include "btf/core/direction.h"
 #include "btf/core/image.h"
@@ -86,7 +93,8 @@ struct ColourHandling {
 
 struct Block {
     int plane = 0, group = 0, cluster = 0;
-    int level = 0;  ///< spatial level: b holds (width >> level) × (height >> level) texels
+    int level = 0;    ///< spatial level: b holds (width >> level) × (height >> level) texels
+    int angular = 0;  ///< angular level: a holds the (view, light) pairs of that level
     std::vector<float> mean;  ///< one per row, or empty (no centring)
     Matrix a;                 ///< rows × K
     Matrix b;                 ///< texels of the cluster (at the block's level) × K
@@ -109,19 +117,27 @@ struct Model {
     /// Spatial levels (1: every b at full resolution); more need clusters == 1 and width and
     /// height divisible by 2^(levels − 1).
     int levels = 1;
-    /// planes × groups × clusters × levels blocks, index
-    /// ((plane · groups + group) · clusters + cluster) · levels + level.
+    /// Directions of angular levels 1, 2, … (level 0: the whole sampling).
+    std::vector<AngularLevel> angular_levels;
+    /// planes × groups × clusters × levels × angular levels blocks, index
+    /// (((plane · groups + group) · clusters + cluster) · levels + level) · angular_count() +
+    /// angular.
     std::vector<Block> blocks;
 
-    int block_index(int plane, int group, int cluster, int level = 0) const {
-        return ((plane * static_cast<int>(groups.size()) + group) * clusters + cluster) * levels +
-               level;
+    int angular_count() const { return 1 + static_cast<int>(angular_levels.size()); }
+    int block_index(int plane, int group, int cluster, int level = 0, int angular = 0) const {
+        return (((plane * static_cast<int>(groups.size()) + group) * clusters + cluster) * levels +
+                level) *
+                   angular_count() +
+               angular;
     }
     /// Width and height of the texel grid of `level`.
     int level_width(int level) const { return width >> level; }
     int level_height(int level) const { return height >> level; }
-    /// Rows of the blocks of group g: views in g × lights × channels.
+    /// Rows of the blocks of group g at angular level 0: views in g × lights × channels.
     int64_t rows(int group) const;
+    /// Rows of a (and of the mean) of a block of group g at angular level m.
+    int64_t block_rows(int group, int angular) const;
     /// Texels of each cluster, in texel order (the columns of its level-0 blocks).
     std::vector<std::vector<int32_t>> cluster_texels() const;
     /// Rows of b of a block of `cluster` at `level` (`lists` = cluster_texels()).

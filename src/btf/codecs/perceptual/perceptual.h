@@ -27,6 +27,9 @@ struct Options {
     /// Coarsest eigen-texture level omission may choose: 1/2^max_level of the extent per axis
     /// (only levels that divide width and height are considered).
     int max_level = 3;
+    /// Coarsest eigen-ABRDF level omission may choose: level j keeps ⌈n / 2^j⌉ of the views and
+    /// of the lights (factor/angular_levels.h; only levels keeping at least 3 of each).
+    int max_angular_level = 2;
     int oversampling = 10;
     int power_iterations = 3;
     uint64_t seed = 1;
@@ -44,7 +47,8 @@ struct OmissionReport {
         int plane = 0;
         float sigma = 0;  ///< singular value of the filtered plane
         int level = 0;    ///< chosen spatial level of its eigen-texture
-        /// ‖T_u (b − B D b)‖²: the perceptual energy the level gives up (0 at level 0)
+        int angular = 0;  ///< chosen angular level of its eigen-ABRDF
+        /// The perceptual energy the levels give up (0 at full resolution; see choose_levels)
         double lost = 0;
     };
     std::vector<Component> components;
@@ -54,7 +58,7 @@ struct OmissionReport {
 
 /// Factorizes `source` in streaming passes: 2 + 2 · power_iterations passes of the randomized SVD
 /// of the filtered planes, then one pass that accumulates the untransformed factors; then, for
-/// quality < 1, chooses each component's spatial level. Fills `report` when given.
+/// quality < 1, chooses each component's spatial and angular level. Fills `report` when given.
 factor::Model factorize(const BtfSource& source, const Options& options,
                         Progress& progress = Progress::none(), OmissionReport* report = nullptr);
 

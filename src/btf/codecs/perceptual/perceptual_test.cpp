@@ -321,7 +321,8 @@ TEST(Perceptual, RejectsBadParameters) {
                   encode(source, Params({{"sped", "3"}}));
               }),
               "codec perceptual: unknown parameter 'sped' (known: components, resolution, speed, "
-              "mean, csf, quality, max-level, oversampling, power-iterations, seed, quantize)");
+              "mean, csf, quality, max-level, max-angular-level, oversampling, power-iterations, "
+              "seed, quantize)");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"quality", "1.5"}}));
               }),
@@ -422,7 +423,8 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
     size_t previous = SIZE_MAX, full = 0, full_file = 0, file = 0;
     int previous_levels = 0;
     for (const std::string q : {"1", "0.97", "0.9", "0.7", "0.4", "0"}) {
-        Package p = encode(source, Params({{"components", "12"}, {"quality", q}}));
+        const Params params({{"components", "12"}, {"quality", q}, {"max-angular-level", "0"}});
+        Package p = encode(source, params);
         const size_t bytes = factor_bytes(p);
         file = encode_package(p).size();
         if (q == "1") {
@@ -431,7 +433,7 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
         }
         EXPECT_LE(bytes, previous) << q;
         previous = bytes;
-        const auto report = report_of(source, Params({{"components", "12"}, {"quality", q}}));
+        const auto report = report_of(source, params);
         int levels = 0;
         for (const auto& c : report.components) levels += c.level;
         EXPECT_GE(levels, previous_levels) << q;
@@ -442,7 +444,8 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
     EXPECT_EQ(previous, 12u * (80 + 4) * 2);
     EXPECT_LT(file, full_file);
     // bq = 0 weighs size alone: every eigen-texture at the coarsest level (16² → 2²).
-    const auto zero = report_of(source, Params({{"components", "12"}, {"quality", "0"}}));
+    const auto zero = report_of(
+        source, Params({{"components", "12"}, {"quality", "0"}, {"max-angular-level", "0"}}));
     for (const auto& c : zero.components) EXPECT_EQ(c.level, 3);
     // Levels must divide the extent: 12² texels allow ×1/2 and ×1/4, not ×1/8.
     const auto twelve = test::cached(*synth::make("leather", 12, test::ubo_subset(3, 4), 1));
@@ -450,34 +453,111 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
     for (const auto& c : report.components) EXPECT_EQ(c.level, 2);
 }
 
-// The perceptual error omission adds is the sum of what each chosen level gives up: the filtered
-// ABRDFs are orthonormal, so the components' losses add.
+// Angular omission: the eigen-ABRDFs of the 8 views × 10 lights may keep 4 × 5 directions (level
+// 1); level 2 would keep 2 views, fewer than a triangulation needs, so it does not exist.
+TEST(PerceptualOmission, AngularLevelsShrinkTheEigenAbrdfs) {
+    const BtfSource& source = fabric();
+    const std::vector<factor::AngularLevel> levels =
+        factor::nested_angular_levels(source.sampling(), 4);
+    ASSERT_EQ(levels.size(), 1u);
+    EXPECT_EQ(levels[0].views.size(), 4u);
+    EXPECT_EQ(levels[0].lights.size(), 5u);
+    size_t previous = SIZE_MAX;
+    int previous_angular = 0;
+    for (const std::string q : {"1", "0.97", "0.9", "0.7", "0.4", "0"}) {
+        const Params params({{"components", "12"}, {"quality", q}, {"max-level", "0"}});
+        Package p = encode(source, params);
+        EXPECT_LE(factor_bytes(p), previous) << q;
+        previous = factor_bytes(p);
+        const auto report = report_of(source, params);
+        int angular = 0;
+        for (const auto& c : report.components) {
+            EXPECT_EQ(c.level, 0);
+            angular += c.angular;
+        }
+        EXPECT_GE(angular, previous_angular) << q;
+        previous_angular = angular;
+        if (q == "1") EXPECT_FALSE(p.header.at("model").contains("angular_levels"));
+    }
+    // At bq = 0 every eigen-ABRDF has 4 · 5 values (of 80).
+    EXPECT_EQ(previous, 12u * (20 + 256) * 2);
+    // Both kinds together: the coarsest of each.
+    Package both = encode(source, Params({{"components", "12"}, {"quality", "0"}}));
+    EXPECT_EQ(factor_bytes(both), 12u * (20 + 4) * 2);
+    const nlohmann::json& model = both.header.at("model");
+    ASSERT_EQ(model.at("angular_levels").size(), 1u);
+    EXPECT_EQ(model.at("angular_levels")[0].at("views").get<std::vector<int>>(), levels[0].views);
+    EXPECT_EQ(model.at("angular_levels")[0].at("lights").get<std::vector<int>>(), levels[0].lights);
+}
+
+// The perceptual error omission adds is the sum of what each chosen level gives up. With one kind
+// of level this is exact: the filtered ABRDFs are orthonormal (spatial levels), the filtered
+// textures orthogonal (angular levels), so the components' losses add. With both kinds, cross
+// terms between components remain, which the sum neglects.
 TEST(PerceptualOmission, AddsThePerceptualErrorItPredicts) {
     const BtfSource& source = fabric();
     const perceptual::Viewing viewing{10, 100};
     const Params full({{"components", "12"}, {"quantize", "f32"}, {"power-iterations", "6"}});
     const auto reference = perceptual_codec().open(encode(source, full));
     const double base = perceptual_error(source, *reference, viewing);
-    for (const std::string q : {"0.9", "0.5"}) {
-        Params reduced = full;
-        reduced.set("quality", q);
-        const auto report = report_of(source, reduced);
-        double predicted = 0;
-        int omitted = 0;
-        for (const auto& c : report.components) {
-            predicted += c.lost;
-            omitted += c.level > 0;
-            if (c.level == 0) EXPECT_EQ(c.lost, 0.0);
+    struct Mode {
+        const char* max_level;
+        const char* max_angular;
+        double tolerance;  // relative
+    };
+    for (const Mode mode : {Mode{"3", "0", 1e-3}, Mode{"0", "2", 1e-3}, Mode{"3", "2", 0.02}})
+        for (const std::string q : {"0.9", "0.5"}) {
+            Params reduced = full;
+            reduced.set("quality", q);
+            reduced.set("max-level", mode.max_level);
+            reduced.set("max-angular-level", mode.max_angular);
+            const auto report = report_of(source, reduced);
+            double predicted = 0;
+            int omitted = 0;
+            for (const auto& c : report.components) {
+                predicted += c.lost;
+                omitted += c.level > 0 || c.angular > 0;
+                if (c.level == 0 && c.angular == 0) {
+                    EXPECT_EQ(c.lost, 0.0);
+                }
+            }
+            ASSERT_GT(omitted, 0) << q;
+            const auto material = perceptual_codec().open(encode(source, reduced));
+            const double added = perceptual_error(source, *material, viewing) - base;
+            EXPECT_NEAR(added, predicted, mode.tolerance * predicted)
+                << q << " " << mode.max_level << " " << mode.max_angular;
         }
-        ASSERT_GT(omitted, 0) << q;
-        const auto material = perceptual_codec().open(encode(source, reduced));
-        const double added = perceptual_error(source, *material, viewing) - base;
-        EXPECT_NEAR(added, predicted, 0.02 * predicted) << q;
-    }
 }
 
-// The evaluator against a reconstruction written out here: value = mean + Σ_blocks a · (B_level
-// b)ᵀ in CIELab, then linear RGB; interpolated with lookup6d.
+// Column k of a block's a at every (view, light) row: for an angular level, each full direction
+// reads the level's directions through their own triangulation.
+std::vector<double> full_abrdf(const factor::Model& model, const factor::Block& b, int k) {
+    const int nv = model.sampling.num_views(), nl = model.sampling.num_lights();
+    std::vector<double> out(size_t(nv) * nl);
+    if (b.angular == 0) {
+        for (size_t r = 0; r < out.size(); ++r) out[r] = b.a(int64_t(r), k);
+        return out;
+    }
+    const factor::AngularLevel& level = model.angular_levels[size_t(b.angular - 1)];
+    const AngularInterpolator views(model.sampling.views.subset(level.views, "v"));
+    const AngularInterpolator lights(model.sampling.lights.subset(level.lights, "l"));
+    const int cl = static_cast<int>(level.lights.size());
+    for (int v = 0; v < nv; ++v)
+        for (int l = 0; l < nl; ++l) {
+            const AngularWeights wv = views.weights(model.sampling.views.vector(v));
+            const AngularWeights wl = lights.weights(model.sampling.lights.vector(l));
+            double sum = 0;
+            for (int i = 0; i < wv.count; ++i)
+                for (int j = 0; j < wl.count; ++j)
+                    sum += double(wv.weight[i]) * wl.weight[j] *
+                           b.a(int64_t(wv.index[i]) * cl + wl.index[j], k);
+            out[size_t(v) * nl + l] = sum;
+        }
+    return out;
+}
+
+// The evaluator against a reconstruction written out here: value = mean + Σ_blocks (U_angular a)
+// · (B_level b)ᵀ in CIELab, then linear RGB; interpolated with lookup6d.
 TEST(PerceptualOmission, EvaluatorMatchesAReferenceReconstruction) {
     const BtfSource& source = fabric();
     Package package =
@@ -487,10 +567,14 @@ TEST(PerceptualOmission, EvaluatorMatchesAReferenceReconstruction) {
     const factor::Model& model = fm.model();
     ASSERT_GT(model.levels, 1);
     EXPECT_EQ(package.header.at("model").at("levels"), model.levels);
-    std::set<int> used;
+    std::set<int> used, used_angular;
     for (const factor::Block& b : model.blocks)
-        if (b.components() > 0) used.insert(b.level);
+        if (b.components() > 0) {
+            used.insert(b.level);
+            used_angular.insert(b.angular);
+        }
     EXPECT_GE(used.size(), 2u);
+    EXPECT_EQ(used_angular.size(), 2u);
     const int w = model.width, h = model.height, nl = model.sampling.num_lights();
     // Lab planes of every sample: [plane][row][texel].
     std::vector<std::vector<double>> lab(3, std::vector<double>(size_t(model.rows(0)) * w * h, 0));
@@ -498,11 +582,12 @@ TEST(PerceptualOmission, EvaluatorMatchesAReferenceReconstruction) {
         const int cw = w >> b.level, ch = h >> b.level;
         for (int k = 0; k < b.components(); ++k) {
             const Eigen::VectorXd coarse = b.b.col(k).cast<double>();
+            const std::vector<double> a = full_abrdf(model, b, k);
             for (int y = 0; y < h; ++y)
                 for (int x = 0; x < w; ++x) {
                     const double t = upsampled(coarse, cw, ch, b.level, x, y);
                     for (int64_t row = 0; row < model.rows(0); ++row)
-                        lab[b.plane][size_t(row) * w * h + y * w + x] += double(b.a(row, k)) * t;
+                        lab[b.plane][size_t(row) * w * h + y * w + x] += a[size_t(row)] * t;
                 }
         }
         if (!b.mean.empty())
@@ -563,7 +648,8 @@ TEST(PerceptualOmission, PrefixesOfAMultiLevelPackageOpen) {
 
 TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
     factor::Model model = perceptual::factorize(
-        fabric(), perceptual::parse_options(Params({{"components", "6"}, {"quality", "0"}})));
+        fabric(), perceptual::parse_options(
+                      Params({{"components", "6"}, {"quality", "0"}, {"max-angular-level", "0"}})));
     ASSERT_EQ(model.levels, 4);
     factor::Model odd = model;
     odd.width = 12;  // not divisible by 8
@@ -575,9 +661,31 @@ TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
     EXPECT_EQ(test::error_of([&] { clustered.validate("test"); }),
               "test: 4 spatial levels with 2 texel clusters (levels need one cluster)");
     Package p = encode(fabric(), Params({{"components", "6"}, {"quality", "0"}}));
-    p.header["model"]["levels"] = 5;
-    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(p); }),
-              "package (perceptual): 12 blocks for 3 planes × 1 groups × 1 clusters × 5 levels");
+    Package spatial = p;
+    spatial.header["model"]["levels"] = 5;
+    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(spatial); }),
+              "package (perceptual): 24 blocks for 3 planes × 1 groups × 1 clusters × 5 levels × 2 "
+              "angular levels");
+    // Angular levels: direction indices must exist, ascend and number at least 3.
+    Package bad = p;
+    bad.header["model"]["angular_levels"][0]["views"] = {0, 1, 8, 9};
+    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(bad); }),
+              "package (perceptual): angular level 1 views must be ascending indices below 8");
+    bad.header["model"]["angular_levels"][0]["views"] = {0, 1};
+    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(bad); }),
+              "package (perceptual): angular level 1 keeps 2 views (at least 3)");
+    bad.header["model"]["angular_levels"][0]["views"] = {3, 1, 2};
+    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(bad); }),
+              "package (perceptual): angular level 1 views must be ascending indices below 8");
+    bad.header["model"]["angular_levels"] = nlohmann::json::array();
+    EXPECT_EQ(test::error_of([&] { perceptual_codec().open(bad); }),
+              "package (perceptual): 0 angular levels");
+    factor::Model grouped = perceptual::factorize(
+        fabric(), perceptual::parse_options(Params({{"components", "6"}, {"quality", "0"}})));
+    ASSERT_EQ(grouped.angular_levels.size(), 1u);
+    std::swap(grouped.groups[0][0], grouped.groups[0][1]);
+    EXPECT_EQ(test::error_of([&] { grouped.validate("test"); }),
+              "test: angular levels need one view group with the views in order (1 groups)");
 }
 
 TEST(Perceptual, IsInTheRegistry) {
