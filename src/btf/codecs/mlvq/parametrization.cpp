@@ -1,0 +1,416 @@
+#include "btf/codecs/mlvq/parametrization.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "btf/core/angular_interpolator.h"
+#include "btf/core/image.h"
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace btf::mlvq {
+
+namespace {
+
+constexpr const char* kName = "mlvq grid";
+// Resampling terms whose weight is below this fraction of the sample's total are dropped.
+constexpr double kNegligible = 1e-7;
+
+typedef float Lanes __attribute__((vector_size(32)));
+constexpr int kLanes = 8;
+inline Lanes load(const float* p) {
+    Lanes v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+// The query conventions of AngularInterpolator: z clamped to ≥ 0 (NaN z → 0), no direction →
+// +x on the horizon; otherwise normalized.
+Vec3 prepare(const Vec3& d) {
+    double x = d.x, y = d.y;
+    double z = d.z > 0 ? d.z : 0.0;
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) return {1, 0, 0};
+    const double m = std::max({std::abs(x), std::abs(y), z});
+    if (!(m > 0)) return {1, 0, 0};
+    x /= m, y /= m, z /= m;  // scaling first keeps tiny and huge vectors representable
+    const double len = std::sqrt(x * x + y * y + z * z);
+    return {x / len, y / len, z / len};
+}
+
+double wrap_2pi(double phi) {
+    if (phi < 0) phi += 2 * kPi;
+    if (phi >= 2 * kPi) phi -= 2 * kPi;
+    return phi;
+}
+
+// Light coordinates in the onion frame whose view azimuth has cosine c and sine s: α and u = sin β
+// of a prepared (unit, upper-hemisphere) light vector.
+void onion_of_prepared(const Vec3& i, double c, double s, double& alpha, double& u) {
+    u = std::clamp(-s * i.x + c * i.y, -1.0, 1.0);  // · e_β
+    const double a = -c * i.x - s * i.y;            // · e_α
+    alpha = (a == 0 && i.z == 0) ? 0.0 : std::atan2(a, i.z);
+}
+
+// View coordinates of a prepared view vector, and the cosine and sine of its azimuth (the
+// azimuth of the normal is 0).
+void view_of_prepared(const Vec3& o, double& theta, double& phi, double& c, double& s) {
+    const double rho = std::sqrt(o.x * o.x + o.y * o.y);
+    theta = std::atan2(rho, o.z);
+    if (rho > 0) {
+        phi = wrap_2pi(std::atan2(o.y, o.x));
+        c = o.x / rho, s = o.y / rho;
+    } else {
+        phi = 0, c = 1, s = 0;
+    }
+}
+
+// Linear weights of the fractional index x on samples 0 … n − 1 (clamped).
+AxisWeights clamped_axis(double x, int n) {
+    if (!(x > 0)) x = 0;
+    if (x > n - 1) x = n - 1;
+    const int i0 = std::min(static_cast<int>(x), n - 2);
+    const float w1 = static_cast<float>(x - i0);
+    return {{i0, i0 + 1}, {1.0f - w1, w1}};
+}
+
+// Linear weights of the fractional index x on n periodic samples.
+AxisWeights periodic_axis(double x, int n) {
+    if (n == 1) return {{0, 0}, {1.0f, 0.0f}};
+    if (!std::isfinite(x)) x = 0;
+    const double f = std::floor(x);
+    int i0 = static_cast<int>(std::fmod(f, double(n)));
+    if (i0 < 0) i0 += n;
+    if (i0 >= n) i0 -= n;
+    const float w1 = static_cast<float>(std::clamp(x - f, 0.0, 1.0));
+    return {{i0, (i0 + 1) % n}, {1.0f - w1, w1}};
+}
+
+MlvqWeights weights_of(const MlvqGrid& g, double alpha, double u, double theta, double phi) {
+    MlvqWeights w;
+    w.alpha = clamped_axis((alpha + kPi / 2) / kPi * (g.n_alpha - 1), g.n_alpha);
+    w.beta = clamped_axis((u + 1) / 2 * (g.n_beta - 1), g.n_beta);
+    w.theta_v = clamped_axis(theta / (kPi / 2) * (g.n_theta_v - 1), g.n_theta_v);
+    w.phi_v = periodic_axis(phi / (2 * kPi) * g.n_phi_v, g.n_phi_v);
+    return w;
+}
+
+std::string source_name(const BtfSource& source) {
+    if (!source.info().path.empty()) return source.info().path.string();
+    return source.info().format.empty() ? std::string("source") : source.info().format;
+}
+
+}  // namespace
+
+// ---- grid --------------------------------------------------------------------------------------
+
+void MlvqGrid::validate() const {
+    auto axis = [](const char* name, int n, int least, const char* why) {
+        if (n < least) fail("{}: {} = {} is below {} ({})", kName, name, n, least, why);
+        if (n > kMaxAxis) fail("{}: {} = {} is above the limit {}", kName, name, n, kMaxAxis);
+    };
+    axis("n_alpha", n_alpha, 3, "with 2 slices both lie on the horizon");
+    axis("n_beta", n_beta, 3, "with 2 samples per slice both are the poles on the horizon");
+    axis("n_theta_v", n_theta_v, 2, "the view elevations span 0 to 90 degrees");
+    axis("n_phi_v", n_phi_v, 1, "1 means isotropic");
+    if (n_phi_v == 2)
+        fail(
+            "{}: n_phi_v = 2 cannot tell view azimuths φ and −φ apart (both blend the samples "
+            "at 0 and 180 degrees alike); use 1 (isotropic) or at least 3",
+            kName);
+    if (samples() > kMaxSamples)
+        fail("{}: {}x{}x{}x{} = {} samples per texel and channel exceed the limit {}", kName,
+             n_phi_v, n_theta_v, n_alpha, n_beta, samples(), kMaxSamples);
+}
+
+double MlvqGrid::alpha(int i) const {
+    return -kPi / 2 + kPi * i / (n_alpha - 1);
+}
+
+double MlvqGrid::sin_beta(int j) const {
+    if (j == 0) return -1.0;
+    if (j == n_beta - 1) return 1.0;
+    return -1.0 + 2.0 * j / (n_beta - 1);
+}
+
+double MlvqGrid::beta(int j) const {
+    return std::asin(sin_beta(j));
+}
+
+double MlvqGrid::theta_v(int k) const {
+    return (kPi / 2) * k / (n_theta_v - 1);
+}
+
+double MlvqGrid::phi_v(int m) const {
+    return 2 * kPi * m / n_phi_v;
+}
+
+double MlvqGrid::light_weight(int i, int j) const {
+    const double d_alpha = kPi / (n_alpha - 1), d_u = 2.0 / (n_beta - 1);
+    const double ta = (i == 0 || i == n_alpha - 1) ? 0.5 : 1.0;
+    const double tb = (j == 0 || j == n_beta - 1) ? 0.5 : 1.0;
+    return d_alpha * d_u * ta * tb;
+}
+
+// ---- mapping -----------------------------------------------------------------------------------
+
+OnionFrame::OnionFrame(double phi_v) {
+    const double c = std::cos(phi_v), s = std::sin(phi_v);
+    e_beta = {-s, c, 0};
+    e_alpha = {-c, -s, 0};
+    n = {0, 0, 1};
+}
+
+OnionAngles onion_from_direction(const Vec3& wi, double phi_v) {
+    double alpha = 0, u = 0;
+    onion_of_prepared(prepare(wi), std::cos(phi_v), std::sin(phi_v), alpha, u);
+    return {alpha, std::asin(u)};
+}
+
+Vec3 direction_from_onion_u(double alpha, double sin_beta, double phi_v) {
+    const OnionFrame f(phi_v);
+    const double u = std::clamp(sin_beta, -1.0, 1.0);
+    const double cb = std::sqrt(std::max(0.0, 1 - u * u));
+    return f.e_beta * u + f.e_alpha * (std::sin(alpha) * cb) + f.n * (std::cos(alpha) * cb);
+}
+
+Vec3 direction_from_onion(const OnionAngles& angles, double phi_v) {
+    const OnionFrame f(phi_v);
+    const double cb = std::cos(angles.beta);
+    return f.e_beta * std::sin(angles.beta) + f.e_alpha * (std::sin(angles.alpha) * cb) +
+           f.n * (std::cos(angles.alpha) * cb);
+}
+
+MlvqCoordinates to_mlvq(const Vec3& wi, const Vec3& wo) {
+    MlvqCoordinates out;
+    double c = 1, s = 0, u = 0;
+    view_of_prepared(prepare(wo), out.theta_v, out.phi_v, c, s);
+    onion_of_prepared(prepare(wi), c, s, out.alpha, u);
+    out.beta = std::asin(u);
+    return out;
+}
+
+void from_mlvq(const MlvqCoordinates& c, Vec3& wi, Vec3& wo) {
+    wo = Direction{c.theta_v, c.phi_v}.vector();
+    wi = direction_from_onion({c.alpha, c.beta}, c.phi_v);
+}
+
+// ---- lookup ------------------------------------------------------------------------------------
+
+MlvqWeights lookup(const MlvqGrid& grid, const MlvqCoordinates& c) {
+    return weights_of(grid, c.alpha, std::sin(c.beta), c.theta_v, c.phi_v);
+}
+
+MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo) {
+    double theta = 0, phi = 0, c = 1, s = 0, alpha = 0, u = 0;
+    view_of_prepared(prepare(wo), theta, phi, c, s);
+    onion_of_prepared(prepare(wi), c, s, alpha, u);
+    return weights_of(grid, alpha, u, theta, phi);
+}
+
+float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* values) {
+    float sum = 0;
+    for (int p = 0; p < 2; ++p)
+        for (int t = 0; t < 2; ++t)
+            for (int a = 0; a < 2; ++a)
+                for (int b = 0; b < 2; ++b)
+                    sum += w.weight(a, b, t, p) * values[w.sample(grid, a, b, t, p)];
+    return sum;
+}
+
+// ---- reading texels ----------------------------------------------------------------------------
+
+SourceTexels::SourceTexels(int views, int lights, int64_t texels)
+    : m_views(views), m_lights(lights), m_texels(texels) {
+    if (views < 0 || lights < 0 || texels < 0)
+        fail("{}: texels of {} views x {} lights x {} texels", kName, views, lights, texels);
+    m_values.assign(size_t(bytes(views, lights, texels) / int64_t(sizeof(float))), 0.0f);
+}
+
+SourceTexels read_rows(const BtfSource& source, int y0, int rows, Progress& progress) {
+    const int width = source.width(), height = source.height();
+    if (rows < 1 || y0 < 0 || y0 > height - rows)
+        fail("{}: texel rows {} to {} are outside the image's {} rows", source_name(source), y0,
+             int64_t(y0) + rows - 1, height);
+    SourceTexels out(source.num_views(), source.num_lights(), int64_t(width) * rows);
+    const int64_t texels = out.texels();
+    for (int v = 0; v < out.views(); ++v) {
+        progress.poll();
+        parallel_for(0, out.lights(), [&](int64_t light) {
+            thread_local Image image;
+            source.read_image(v, static_cast<int>(light), image);
+            if (image.width() != width || image.height() != height || image.channels() < 3)
+                fail("{}: image (view {}, light {}) is {}x{}x{}, expected {}x{}x3",
+                     source_name(source), v, light, image.width(), image.height(), image.channels(),
+                     width, height);
+            const int channels = image.channels();
+            const float* px = image.data() + int64_t(y0) * width * channels;
+            const int p = v * out.lights() + static_cast<int>(light);
+            for (int64_t t0 = 0; t0 < texels; t0 += SourceTexels::kTile) {
+                float* r = out.data() + out.offset(p, 0, t0);
+                const int n = static_cast<int>(std::min<int64_t>(SourceTexels::kTile, texels - t0));
+                for (int q = 0; q < n; ++q) {
+                    const float* x = px + (t0 + q) * channels;
+                    r[q] = x[0];
+                    r[SourceTexels::kTile + q] = x[1];
+                    r[2 * SourceTexels::kTile + q] = x[2];
+                }
+            }
+        });
+        progress.advance(out.lights());
+    }
+    return out;
+}
+
+// ---- resampling --------------------------------------------------------------------------------
+
+Resampler::Resampler(const MlvqGrid& grid, const Sampling& sampling)
+    : m_grid(grid), m_views(sampling.num_views()), m_lights(sampling.num_lights()) {
+    m_grid.validate();
+    if (m_views < 1 || m_lights < 1) fail("{}: resampling needs views and lights", kName);
+    if (int64_t(m_views) * m_lights > int64_t(INT32_MAX))
+        fail("{}: {} views x {} lights are too many images", kName, m_views, m_lights);
+    const AngularInterpolator view_interp(sampling.views);
+    const AngularInterpolator light_interp(sampling.lights);
+    const MlvqGrid& g = m_grid;
+
+    // Light weights depend on (φv, α, β) only, view weights on (φv, θv) only.
+    std::vector<AngularWeights> light(size_t(g.n_phi_v) * g.light_samples());
+    std::vector<AngularWeights> view(size_t(g.n_phi_v) * g.n_theta_v);
+    for (int m = 0; m < g.n_phi_v; ++m) {
+        for (int k = 0; k < g.n_theta_v; ++k)
+            view[size_t(m) * g.n_theta_v + k] =
+                view_interp.weights(Direction{g.theta_v(k), g.phi_v(m)});
+        for (int i = 0; i < g.n_alpha; ++i)
+            for (int j = 0; j < g.n_beta; ++j)
+                light[(size_t(m) * g.n_alpha + i) * g.n_beta + j] = light_interp.weights(
+                    direction_from_onion_u(g.alpha(i), g.sin_beta(j), g.phi_v(m)));
+    }
+
+    m_offsets.reserve(size_t(g.samples()) + 1);
+    m_offsets.push_back(0);
+    m_terms.reserve(size_t(g.samples()) * 4);
+    std::vector<std::pair<int32_t, double>> terms;
+    for (int m = 0; m < g.n_phi_v; ++m)
+        for (int k = 0; k < g.n_theta_v; ++k)
+            for (int i = 0; i < g.n_alpha; ++i)
+                for (int j = 0; j < g.n_beta; ++j) {
+                    const AngularWeights& vw = view[size_t(m) * g.n_theta_v + k];
+                    const AngularWeights& lw = light[(size_t(m) * g.n_alpha + i) * g.n_beta + j];
+                    terms.clear();
+                    double total = 0;
+                    for (int a = 0; a < vw.count; ++a)
+                        for (int b = 0; b < lw.count; ++b)
+                            total += double(vw.weight[a]) * lw.weight[b];
+                    // Terms below float resolution (a sample next to a source direction) are
+                    // dropped: they cannot change a float value, and cost a gather each.
+                    double sum = 0;
+                    for (int a = 0; a < vw.count; ++a)
+                        for (int b = 0; b < lw.count; ++b) {
+                            const double w = double(vw.weight[a]) * lw.weight[b];
+                            if (!(w > kNegligible * total)) continue;
+                            terms.emplace_back(vw.index[a] * m_lights + lw.index[b], w);
+                            sum += w;
+                        }
+                    if (!(sum > 0))
+                        fail(
+                            "{}: the angular interpolator gave no weight to grid sample (phi_v "
+                            "{}, theta_v {}, alpha {}, beta {})",
+                            kName, m, k, i, j);
+                    std::sort(terms.begin(), terms.end());
+                    for (const auto& [image, w] : terms)
+                        m_terms.push_back({image, static_cast<float>(w / sum)});
+                    m_offsets.push_back(static_cast<int64_t>(m_terms.size()));
+                }
+}
+
+void Resampler::gather_tile(const SourceTexels& raw, int64_t tile, float* out) const {
+    constexpr int kTile = SourceTexels::kTile;
+    static_assert(kTile == kLanes);
+    const int64_t n = samples();
+    const float* base = raw.data() + raw.offset(0, 0, tile * kTile);
+    const Term* terms = m_terms.data();
+    constexpr int64_t kAhead = 6;  // samples whose source values are prefetched in advance
+    for (int64_t s = 0; s < n; ++s) {
+        if (s + kAhead < n)
+            for (int64_t e = m_offsets[s + kAhead]; e < m_offsets[s + kAhead + 1]; ++e) {
+                const float* p = base + int64_t(terms[e].image) * 3 * kTile;
+                __builtin_prefetch(p);
+                __builtin_prefetch(p + 2 * kTile);
+            }
+        Lanes r = {}, g = {}, b = {};
+        for (int64_t e = m_offsets[s]; e < m_offsets[s + 1]; ++e) {
+            const float* p = base + int64_t(terms[e].image) * 3 * kTile;
+            const float w = terms[e].weight;
+            r += w * load(p);
+            g += w * load(p + kTile);
+            b += w * load(p + 2 * kTile);
+        }
+        for (int t = 0; t < kTile; ++t) {
+            float* o = out + int64_t(t) * 3 * n + s;
+            o[0] = r[t];
+            o[n] = g[t];
+            o[2 * n] = b[t];
+        }
+    }
+}
+
+void Resampler::gather_texel(const SourceTexels& raw, int64_t texel, float* out) const {
+    constexpr int kTile = SourceTexels::kTile;
+    const int64_t n = samples();
+    const float* base = raw.data() + raw.offset(0, 0, texel);
+    for (int64_t s = 0; s < n; ++s) {
+        float acc[3] = {0, 0, 0};
+        for (int64_t e = m_offsets[s]; e < m_offsets[s + 1]; ++e) {
+            const float* r = base + int64_t(m_terms[e].image) * 3 * kTile;
+            const float w = m_terms[e].weight;
+            for (int c = 0; c < 3; ++c) acc[c] += w * r[c * kTile];
+        }
+        for (int c = 0; c < 3; ++c) out[c * n + s] = acc[c];
+    }
+}
+
+void Resampler::check(const SourceTexels& raw) const {
+    if (raw.views() != m_views || raw.lights() != m_lights)
+        fail("{}: texels of {} views x {} lights given to a resampler of {} x {}", kName,
+             raw.views(), raw.lights(), m_views, m_lights);
+}
+
+void Resampler::resample(const SourceTexels& raw, int64_t first, int64_t count, float* out) const {
+    check(raw);
+    if (first < 0 || count < 0 || first > raw.texels() - count)
+        fail("{}: texels {} to {} are outside the {} given", kName, first, first + count - 1,
+             raw.texels());
+    constexpr int kTile = SourceTexels::kTile;
+    const int64_t stride = 3 * samples(), end = first + count;
+    int64_t t = first;
+    while (t < end) {
+        if (t % kTile == 0 && t + kTile <= end) {
+            gather_tile(raw, t / kTile, out + (t - first) * stride);
+            t += kTile;
+        } else {
+            gather_texel(raw, t, out + (t - first) * stride);
+            ++t;
+        }
+    }
+}
+
+std::vector<float> Resampler::resample(const SourceTexels& raw) const {
+    std::vector<float> out(size_t(raw.texels()) * 3 * size_t(samples()));
+    resample(raw, out);
+    return out;
+}
+
+void Resampler::resample(const SourceTexels& raw, std::span<float> out) const {
+    check(raw);
+    if (int64_t(out.size()) != raw.texels() * 3 * samples())
+        fail("{}: {} output values for {} texels of {} samples in 3 channels", kName, out.size(),
+             raw.texels(), samples());
+    constexpr int64_t kChunk = 4 * SourceTexels::kTile;
+    parallel_chunks(0, raw.texels(), kChunk, [&](int64_t b, int64_t e) {
+        resample(raw, b, e - b, out.data() + b * 3 * samples());
+    });
+}
+
+}  // namespace btf::mlvq
