@@ -8,6 +8,7 @@
 
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/lpca/lpca.h"
+#include "btf/codecs/mlvq/mlvq.h"
 #include "btf/codecs/pca_views/pca_views.h"
 #include "btf/codecs/perceptual/perceptual.h"
 #include "btf/util/error.h"
@@ -87,7 +88,7 @@ void Params::check_all_used(std::string_view codec, const std::vector<ParamInfo>
 
 const std::vector<const Codec*>& codecs() {
     static const std::vector<const Codec*> all = {&fmf_codec(), &pca_views_codec(), &lpca_codec(),
-                                                  &perceptual_codec()};
+                                                  &perceptual_codec(), &mlvq_codec()};
     return all;
 }
 

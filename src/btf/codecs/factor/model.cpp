@@ -311,25 +311,6 @@ void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
     append(out, t.cell_triangles.data(), t.cell_triangles.size());
 }
 
-nlohmann::json directions_json(const DirectionSet& set) {
-    nlohmann::json theta = nlohmann::json::array(), phi = nlohmann::json::array();
-    for (const Direction& d : set.directions()) {
-        theta.push_back(d.theta);
-        phi.push_back(d.phi);
-    }
-    return {{"name", set.name()}, {"theta", theta}, {"phi", phi}};
-}
-
-DirectionSet directions_from_json(const nlohmann::json& j) {
-    const auto& theta = j.at("theta");
-    const auto& phi = j.at("phi");
-    if (!theta.is_array() || theta.size() != phi.size()) fail("direction arrays differ in length");
-    std::vector<Direction> dirs;
-    for (size_t i = 0; i < theta.size(); ++i)
-        dirs.push_back({theta[i].get<double>(), phi[i].get<double>()});
-    return DirectionSet(j.at("name").get<std::string>(), std::move(dirs));
-}
-
 void put_column(std::vector<uint8_t>& out, Quantization q, const float* v, int64_t n,
                 int64_t stride) {
     switch (q) {
@@ -395,6 +376,25 @@ PackageSection named_section(std::string name) {
 }
 
 }  // namespace
+
+nlohmann::json directions_json(const DirectionSet& set) {
+    nlohmann::json theta = nlohmann::json::array(), phi = nlohmann::json::array();
+    for (const Direction& d : set.directions()) {
+        theta.push_back(d.theta);
+        phi.push_back(d.phi);
+    }
+    return {{"name", set.name()}, {"theta", theta}, {"phi", phi}};
+}
+
+DirectionSet directions_from_json(const nlohmann::json& j) {
+    const auto& theta = j.at("theta");
+    const auto& phi = j.at("phi");
+    if (!theta.is_array() || theta.size() != phi.size()) fail("direction arrays differ in length");
+    std::vector<Direction> dirs;
+    for (size_t i = 0; i < theta.size(); ++i)
+        dirs.push_back({theta[i].get<double>(), phi[i].get<double>()});
+    return DirectionSet(j.at("name").get<std::string>(), std::move(dirs));
+}
 
 Package to_package(const Model& model, std::string_view codec, const nlohmann::json& params,
                    Quantization quantization) {

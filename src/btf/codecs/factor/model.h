@@ -153,6 +153,10 @@ struct Model {
 Model model_for(const BtfSource& source, const ColourHandling& colour, std::string_view codec);
 /// The name of a source in messages: its path, or its format for sources without one.
 std::string source_name(const BtfSource& source);
+/// A direction set in a package header ({"name", "theta": […], "phi": […]}, radians) and back;
+/// directions_from_json throws btf::Error for malformed arrays.
+nlohmann::json directions_json(const DirectionSet& set);
+DirectionSet directions_from_json(const nlohmann::json& j);
 
 /// Package header fields and sections for a model: "tables" (the views' and lights'
 /// AngularInterpolator tables, for viewers), "clusters" (texel clusters, when more than one),

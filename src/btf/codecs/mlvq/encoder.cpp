@@ -1,0 +1,245 @@
+#include "btf/codecs/mlvq/encoder.h"
+
+#include <cmath>
+#include <limits>
+
+#include "btf/util/error.h"
+
+namespace btf::mlvq {
+
+namespace {
+
+CodebookOptions book(const char* name, std::vector<uint32_t> dims, uint32_t channels, Kind kind,
+                     const EncoderOptions& o, double threshold) {
+    CodebookOptions b;
+    b.name = name;
+    b.layout.dims = std::move(dims);
+    b.layout.channels = channels;
+    b.kind = kind;
+    b.measure = o.measure;
+    b.threshold = o.measure == Measure::mssim ? o.threshold : threshold;
+    b.ssim = o.ssim;
+    return b;
+}
+
+double sum(const float* v, size_t n) {
+    double s = 0;
+    for (size_t i = 0; i < n; ++i) s += std::abs(double(v[i]));
+    return s;
+}
+
+}  // namespace
+
+Encoder::Encoder(const EncoderOptions& o)
+    : m_options(o),
+      m_p4(book("P4",
+                {uint32_t(o.grid.n_phi_v), uint32_t(o.grid.n_theta_v), uint32_t(o.grid.n_alpha),
+                 uint32_t(o.grid.n_beta)},
+                3, Kind::luminance, o, o.threshold)),
+      m_p3(book("P3",
+                {uint32_t(o.grid.n_theta_v), uint32_t(o.grid.n_alpha), uint32_t(o.grid.n_beta)}, 3,
+                Kind::luminance, o, o.threshold * o.level_factor)),
+      m_m(book("M", {uint32_t(o.grid.n_alpha), uint32_t(o.grid.n_beta)}, 3, Kind::luminance, o,
+               o.threshold * std::pow(o.level_factor, 2))),
+      m_p2(book("P2", {uint32_t(o.grid.n_alpha), uint32_t(o.grid.n_beta)}, 1, Kind::luminance, o,
+                o.threshold * std::pow(o.level_factor, 3))),
+      m_p1(book("P1", {uint32_t(o.grid.n_beta)}, 1, Kind::luminance, o,
+                o.threshold * std::pow(o.level_factor, 4))),
+      m_i2(book("I2", {uint32_t(o.grid.n_alpha), uint32_t(o.grid.n_beta)}, 2, Kind::chromaticity, o,
+                o.threshold_i2)),
+      m_i1(book("I1", {uint32_t(o.grid.n_beta)}, 2, Kind::chromaticity, o, o.threshold_i1)),
+      m_c(book("C", {1}, 2, Kind::chromaticity, o, o.threshold_c)) {
+    o.grid.validate();
+    check(o.threshold >= 0 && o.level_factor > 0 && o.level_factor <= 1,
+          "mlvq: threshold {} and level factor {} (need ≥ 0 and in (0, 1])", o.threshold,
+          o.level_factor);
+    m_books.grid = o.grid;
+    m_books.colour = o.colour;
+}
+
+void Encoder::scale_thresholds(double factor) {
+    for (Codebook* b : {&m_p4, &m_p3, &m_m, &m_p2, &m_p1, &m_i2, &m_i1, &m_c})
+        b->set_threshold(b->options().threshold * factor);
+}
+
+void Encoder::freeze() {
+    m_p4.rebuild_index();
+}
+
+IndexScale Encoder::insert(std::span<const float> texel) {
+    check(texel.size() == texel_length(), "mlvq: a texel of {} values, expected {}", texel.size(),
+          texel_length());
+    const size_t n4 = size_t(m_options.grid.samples());
+    const double mass = sum(texel.data(), n4);
+    const uint32_t index = p4(texel.data());
+    return {index, float(mass)};
+}
+
+std::vector<IndexScale> Encoder::nearest(std::span<const float> texels) const {
+    check(texels.size() % texel_length() == 0, "mlvq: {} values are not whole texels of {}",
+          texels.size(), texel_length());
+    check(m_p4.size() > 0, "mlvq: nearest() before any texel was inserted");
+    const std::vector<Match> matches =
+        m_p4.find_batch(texels, std::numeric_limits<double>::infinity());
+    std::vector<IndexScale> out(matches.size());
+    for (size_t t = 0; t < matches.size(); ++t)
+        out[t] = {matches[t].index, float(matches[t].scale)};
+    return out;
+}
+
+// Each level: search; otherwise decompose, then add the reconstruction from the children (what
+// the decoder produces) as the new code-vector.
+
+uint32_t Encoder::p4(const float* texel) {
+    const MlvqGrid& g = m_options.grid;
+    const size_t n3 = size_t(g.n_theta_v) * g.n_alpha * g.n_beta, n4 = n3 * g.n_phi_v;
+    const Match found = m_p4.find(std::span<const float>(texel, 3 * n4));
+    if (found) return found.index;
+    const double total = sum(texel, n4);
+    std::vector<float> recon(3 * n4);
+    std::vector<IndexScale> entries(size_t(g.n_phi_v));
+    for (int m = 0; m < g.n_phi_v; ++m) {
+        const float* slice = texel + size_t(m) * n3;
+        const uint32_t child = p3(slice, n4);
+        const float scale = total > 0 ? float(sum(slice, n3) / total) : 0.0f;
+        entries[size_t(m)] = {child, scale};
+        const std::span<const float> v = m_p3.vector(child);
+        for (size_t s = 0; s < n3; ++s) {
+            recon[size_t(m) * n3 + s] = scale * v[s];
+            recon[n4 + size_t(m) * n3 + s] = v[n3 + s];
+            recon[2 * n4 + size_t(m) * n3 + s] = v[2 * n3 + s];
+        }
+    }
+    const Match added = m_p4.add(recon);
+    m_books.p4.insert(m_books.p4.end(), entries.begin(), entries.end());
+    return added.index;
+}
+
+uint32_t Encoder::p3(const float* slice, size_t stride) {
+    const MlvqGrid& g = m_options.grid;
+    const size_t n2 = size_t(g.n_alpha) * g.n_beta, n3 = n2 * g.n_theta_v;
+    std::vector<float> query(3 * n3);
+    for (int p = 0; p < 3; ++p)
+        std::copy(slice + p * stride, slice + p * stride + n3, query.begin() + p * n3);
+    const Match found = m_p3.find(query);
+    if (found) return found.index;
+    const double total = sum(query.data(), n3);
+    std::vector<float> recon(3 * n3);
+    std::vector<IndexScale> entries(size_t(g.n_theta_v));
+    for (int k = 0; k < g.n_theta_v; ++k) {
+        const float* sub = query.data() + size_t(k) * n2;
+        const uint32_t child = merge(sub, n3);
+        const float scale = total > 0 ? float(sum(sub, n2) / total) : 0.0f;
+        entries[size_t(k)] = {child, scale};
+        const std::span<const float> v = m_m.vector(child);
+        for (size_t s = 0; s < n2; ++s) {
+            recon[size_t(k) * n2 + s] = scale * v[s];
+            recon[n3 + size_t(k) * n2 + s] = v[n2 + s];
+            recon[2 * n3 + size_t(k) * n2 + s] = v[2 * n2 + s];
+        }
+    }
+    const Match added = m_p3.add(recon);
+    m_books.p3.insert(m_books.p3.end(), entries.begin(), entries.end());
+    return added.index;
+}
+
+uint32_t Encoder::merge(const float* slice, size_t stride) {
+    const MlvqGrid& g = m_options.grid;
+    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+    std::vector<float> query(3 * n2);
+    for (int p = 0; p < 3; ++p)
+        std::copy(slice + p * stride, slice + p * stride + n2, query.begin() + p * n2);
+    const Match found = m_m.find(query);
+    if (found) return found.index;
+    const std::array<uint32_t, 2> pair = {p2(query.data()),
+                                          i2(query.data() + n2, query.data() + 2 * n2)};
+    if (const auto it = m_pairs.find(pair); it != m_pairs.end()) return it->second;
+    std::vector<float> recon(3 * n2);
+    const std::span<const float> y = m_p2.vector(pair[0]), c = m_i2.vector(pair[1]);
+    std::copy(y.begin(), y.end(), recon.begin());
+    std::copy(c.begin(), c.end(), recon.begin() + n2);
+    const Match added = m_m.add(recon);
+    m_books.m.push_back(pair);
+    m_pairs.emplace(pair, added.index);
+    return added.index;
+}
+
+uint32_t Encoder::p2(const float* y) {
+    const MlvqGrid& g = m_options.grid;
+    const size_t nb = size_t(g.n_beta), n2 = nb * g.n_alpha;
+    const Match found = m_p2.find(std::span<const float>(y, n2));
+    if (found) return found.index;
+    const double total = sum(y, n2);
+    std::vector<float> recon(n2);
+    std::vector<IndexScale> entries(size_t(g.n_alpha));
+    for (int i = 0; i < g.n_alpha; ++i) {
+        const uint32_t child = p1(y + size_t(i) * nb);
+        const float scale = total > 0 ? float(sum(y + size_t(i) * nb, nb) / total) : 0.0f;
+        entries[size_t(i)] = {child, scale};
+        const std::span<const float> v = m_p1.vector(child);
+        for (size_t j = 0; j < nb; ++j) recon[size_t(i) * nb + j] = scale * v[j];
+    }
+    const Match added = m_p2.add(recon);
+    m_books.p2.insert(m_books.p2.end(), entries.begin(), entries.end());
+    return added.index;
+}
+
+uint32_t Encoder::p1(const float* y) {
+    const size_t nb = size_t(m_options.grid.n_beta);
+    const Match m = m_p1.find_or_add(std::span<const float>(y, nb));
+    if (m.added) {
+        const std::span<const float> v = m_p1.vector(m.index);
+        m_books.p1.insert(m_books.p1.end(), v.begin(), v.end());
+    }
+    return m.index;
+}
+
+uint32_t Encoder::i2(const float* c1, const float* c2) {
+    const MlvqGrid& g = m_options.grid;
+    const size_t nb = size_t(g.n_beta), n2 = nb * g.n_alpha;
+    std::vector<float> query(2 * n2);
+    std::copy(c1, c1 + n2, query.begin());
+    std::copy(c2, c2 + n2, query.begin() + n2);
+    const Match found = m_i2.find(query);
+    if (found) return found.index;
+    std::vector<float> recon(2 * n2);
+    for (int i = 0; i < g.n_alpha; ++i) {
+        const uint32_t child = i1(c1 + size_t(i) * nb, c2 + size_t(i) * nb);
+        m_books.i2.push_back(child);
+        const std::span<const float> v = m_i1.vector(child);
+        for (size_t j = 0; j < nb; ++j) {
+            recon[size_t(i) * nb + j] = v[j];
+            recon[n2 + size_t(i) * nb + j] = v[nb + j];
+        }
+    }
+    return m_i2.add(recon).index;
+}
+
+uint32_t Encoder::i1(const float* c1, const float* c2) {
+    const size_t nb = size_t(m_options.grid.n_beta);
+    std::vector<float> query(2 * nb);
+    std::copy(c1, c1 + nb, query.begin());
+    std::copy(c2, c2 + nb, query.begin() + nb);
+    const Match found = m_i1.find(query);
+    if (found) return found.index;
+    std::vector<float> recon(2 * nb);
+    for (size_t j = 0; j < nb; ++j) {
+        const uint32_t child = c(c1[j], c2[j]);
+        m_books.i1.push_back(child);
+        recon[j] = m_books.c[child][0];
+        recon[nb + j] = m_books.c[child][1];
+    }
+    return m_i1.add(recon).index;
+}
+
+uint32_t Encoder::c(float c1, float c2) {
+    const float query[2] = {c1, c2};
+    const Match m = m_c.find_or_add(query);
+    if (m.added) {
+        const std::span<const float> v = m_c.vector(m.index);
+        m_books.c.push_back({v[0], v[1]});
+    }
+    return m.index;
+}
+
+}  // namespace btf::mlvq

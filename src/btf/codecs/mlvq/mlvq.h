@@ -1,0 +1,65 @@
+#pragma once
+/// mlvq: multi-level vector quantization (Havran, Filip, Myszkowski 2010); see mlvq.cpp for the
+/// user documentation, codebooks.h for the model and encoder.h for the quantization.
+
+#include <memory>
+
+#include "btf/codecs/codec.h"
+#include "btf/codecs/mlvq/codebooks.h"
+#include "btf/codecs/mlvq/encoder.h"
+
+namespace btf {
+
+/// The registry entry.
+const Codec& mlvq_codec();
+
+namespace mlvq {
+
+struct Options {
+    EncoderOptions encoder;
+    bool colour_auto = true;        ///< YCbCr for LDR sources, LogLuv for HDR
+    double first_fraction = 0.01;   ///< training step 1: Halton-sampled texels at the threshold
+    double second_fraction = 0.04;  ///< training step 2, thresholds × growth
+    double growth = 2.5;
+    /// Bytes of raw and resampled texels held at once while reading the source in row bands.
+    int64_t memory_bytes = int64_t(1) << 30;
+};
+
+/// Reads the options from codec parameters; checks ranges and reports unknown parameters.
+Options parse_options(const Params& params);
+
+/// Encoding statistics.
+struct EncodeReport {
+    int64_t trained = 0;  ///< texels inserted in steps 1 and 2
+    int64_t texels = 0;
+    double seconds_reading = 0, seconds_training = 0, seconds_frozen = 0;
+};
+
+/// The code-books and P6 of `source`.
+std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& options,
+                                        Progress& progress = Progress::none(),
+                                        EncodeReport* report = nullptr);
+
+/// A material decoded from code-books and its P6.
+class MlvqMaterial final : public Material {
+  public:
+    MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index);
+
+    int width() const override { return m_index.width; }
+    int height() const override { return m_index.height; }
+    const Sampling& sampling() const override { return m_index.sampling; }
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
+    Rgb eval_sample(int x, int y, int view, int light) const override;
+
+    const Codebooks& codebooks() const { return *m_books; }
+    const TexelIndex& texel_index() const { return m_index; }
+    /// Planes (Y, c₁, c₂) of texel (x, y) at the lookup weights w.
+    std::array<float, 3> planes(int64_t texel, const MlvqWeights& w) const;
+
+  private:
+    std::shared_ptr<const Codebooks> m_books;
+    TexelIndex m_index;
+};
+
+}  // namespace mlvq
+}  // namespace btf

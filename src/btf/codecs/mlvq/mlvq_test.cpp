@@ -1,0 +1,222 @@
+#include "btf/codecs/mlvq/mlvq.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "btf/io/function_source.h"
+#include "btf/synth/synth.h"
+#include "btf/testing/sources.h"
+#include "btf/testing/support.h"
+
+namespace btf::mlvq {
+namespace {
+
+// A small grid keeps the tests fast; the structure is the paper's.
+Params small_grid(Params p = {}) {
+    p.set("n-alpha", "7");
+    p.set("n-beta", "7");
+    p.set("n-theta-v", "4");
+    p.set("n-phi-v", "6");
+    return p;
+}
+
+const BtfSource& leather() {
+    static const std::unique_ptr<FunctionSource> source =
+        test::cached(*synth::make("leather", 16, test::ubo_subset(8, 12), 5));
+    return *source;
+}
+
+// F_x of every texel of `source` in planes, as the encoder sees it.
+std::vector<float> resampled_planes(const BtfSource& source, const MlvqGrid& grid,
+                                    ColourModel colour) {
+    const Resampler r(grid, source.sampling());
+    const SourceTexels raw = read_rows(source, 0, source.height());
+    std::vector<float> f = r.resample(raw);
+    const int64_t n = grid.samples();
+    for (int64_t t = 0; t < source.num_texels(); ++t) {
+        float* v = f.data() + t * 3 * n;
+        for (int64_t s = 0; s < n; ++s) {
+            const auto p = to_planes(colour, {v[s], v[n + s], v[2 * n + s]});
+            v[s] = p[0];
+            v[n + s] = p[1];
+            v[2 * n + s] = p[2];
+        }
+    }
+    return f;
+}
+
+double texel_mse(const Codebooks& books, const IndexScale& p6, const float* f) {
+    const MlvqGrid& g = books.grid;
+    const int64_t n = g.samples();
+    double sum = 0;
+    for (int m = 0; m < g.n_phi_v; ++m)
+        for (int k = 0; k < g.n_theta_v; ++k)
+            for (int i = 0; i < g.n_alpha; ++i)
+                for (int j = 0; j < g.n_beta; ++j) {
+                    const int64_t s = g.index(m, k, i, j);
+                    const auto p = books.sample(p6, m, k, i, j);
+                    for (int c = 0; c < 3; ++c) {
+                        const double d = double(p[size_t(c)]) - f[c * n + s];
+                        sum += d * d;
+                    }
+                }
+    return sum / double(3 * n);
+}
+
+// The reconstruction of a texel inserted in training step 1 is within its threshold: the chain
+// of code-books bounds the error level by level (the chroma thresholds are below ε_P4 here).
+TEST(Mlvq, TrainedTexelsReconstructWithinTheThreshold) {
+    const BtfSource& source = leather();
+    Params params = small_grid(
+        {{"threshold", "1e-6"}, {"chroma-threshold", "1e-6"}, {"first", "0.2"}, {"second", "0.1"}});
+    const Options options = parse_options(params);
+    const auto [books, index] = encode(source, options);
+    const std::vector<float> f = resampled_planes(source, options.encoder.grid, books.colour);
+    const int64_t length = 3 * options.encoder.grid.samples();
+    // Steps 1 and 2 insert the first 20 % and 10 % more of the Halton texels, at the threshold
+    // and at 2.5 times it; the frozen rest takes the nearest code-vectors, without a bound.
+    int step1 = 0, step2 = 0;
+    double worst = 0;
+    for (int64_t t = 0; t < source.num_texels(); ++t) {
+        const double e = texel_mse(books, index.p6[size_t(t)], f.data() + t * length);
+        step1 += e <= 1e-6 * (1 + 1e-4);
+        step2 += e <= 2.5e-6 * (1 + 1e-4);
+        worst = std::max(worst, e);
+    }
+    EXPECT_GE(step1, 51);
+    EXPECT_GE(step2, 51 + 26);
+    EXPECT_LT(worst, 1e-4);  // about 10 % of the luminance on this material
+    EXPECT_GT(books.size_p4(), 1u);
+    EXPECT_LT(books.size_p4(), size_t(source.num_texels()));
+}
+
+// Identical texels get the same P4 entry and scale.
+TEST(Mlvq, IdenticalTexelsShareCodeVectors) {
+    const BtfSource& base = leather();
+    const FunctionSource tiled(base.sampling(), 16, 16, [&base](int v, int l, int x, int y) {
+        return static_cast<const FunctionSource&>(base).value(v, l, x % 4, y % 4);
+    });
+    const auto [books, index] = encode(tiled, parse_options(small_grid()));
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            EXPECT_EQ(index.p6[size_t(y) * 16 + x], index.p6[size_t(y % 4) * 16 + x % 4])
+                << x << " " << y;
+    EXPECT_LE(books.size_p4(), 16u);
+}
+
+// RMSE of a value function against the source over every sample.
+template <typename Value>
+double rmse_of(const BtfSource& source, Value value) {
+    double sum = 0;
+    int64_t n = 0;
+    for (int v = 0; v < source.num_views(); ++v)
+        for (int l = 0; l < source.num_lights(); ++l) {
+            const Image image = source.image(v, l);
+            for (int y = 0; y < source.height(); ++y)
+                for (int x = 0; x < source.width(); ++x) {
+                    const Rgb a = image.rgb(x, y), b = value(x, y, v, l);
+                    sum += double(a.r - b.r) * (a.r - b.r) + double(a.g - b.g) * (a.g - b.g) +
+                           double(a.b - b.b) * (a.b - b.b);
+                    n += 3;
+                }
+        }
+    return std::sqrt(sum / double(n));
+}
+
+double rmse(const BtfSource& source, const Material& m) {
+    return rmse_of(source, [&m](int x, int y, int v, int l) { return m.eval_sample(x, y, v, l); });
+}
+
+TEST(Mlvq, PackageRoundTripDecodesTheMaterial) {
+    const BtfSource& source = leather();
+    Package package = mlvq_codec().encode(source, small_grid());
+    const auto material = open_material(decode_package(encode_package(package), "m"));
+    const auto& m = dynamic_cast<const MlvqMaterial&>(*material);
+    EXPECT_EQ(m.width(), 16);
+    EXPECT_EQ(m.sampling().num_views(), 8);
+    // The decoded material is as close to the source as the resampling onto the grid allows:
+    // its RMSE exceeds that of the unquantized grid function by little.
+    const Options options = parse_options(small_grid());
+    const MlvqGrid& grid = options.encoder.grid;
+    const std::vector<float> f = resampled_planes(source, grid, ColourModel::kYCbCr);
+    const int64_t n = grid.samples();
+    const double resampling = rmse_of(source, [&](int x, int y, int v, int l) {
+        const MlvqWeights w =
+            lookup(grid, source.sampling().lights.vector(l), source.sampling().views.vector(v));
+        const float* t = f.data() + (int64_t(y) * 16 + x) * 3 * n;
+        return from_planes(ColourModel::kYCbCr, reconstruct(grid, w, t),
+                           reconstruct(grid, w, t + n), reconstruct(grid, w, t + 2 * n));
+    });
+    const double e = rmse(source, m);
+    EXPECT_LT(e, 1.2 * resampling) << resampling;
+    EXPECT_GT(e, 0.0);
+    // The stored code-books equal the encoder's up to scalar quantization.
+    const auto [books, index] = encode(source, options);
+    EXPECT_EQ(m.codebooks().size_p4(), books.size_p4());
+    EXPECT_EQ(m.codebooks().size_p1(), books.size_p1());
+    ASSERT_EQ(m.texel_index().p6.size(), index.p6.size());
+    for (size_t t = 0; t < index.p6.size(); ++t) {
+        EXPECT_EQ(m.texel_index().p6[t].index, index.p6[t].index);
+        EXPECT_NEAR(m.texel_index().p6[t].scale, index.p6[t].scale, 0.02 * index.p6[t].scale);
+    }
+    // eval at a sample's directions and a texel centre equals eval_sample.
+    const Vec3 wi = source.sampling().lights.vector(3), wo = source.sampling().views.vector(2);
+    const Rgb at = m.eval({(5 + 0.5) / 16, (7 + 0.5) / 16}, wi, wo);
+    const Rgb exact = m.eval_sample(5, 7, 2, 3);
+    EXPECT_NEAR(at.r, exact.r, 1e-6);
+    EXPECT_NEAR(at.g, exact.g, 1e-6);
+    EXPECT_NEAR(at.b, exact.b, 1e-6);
+}
+
+TEST(Mlvq, PrefixesOfThePackageOpen) {
+    const BtfSource& source = leather();
+    const Package full = mlvq_codec().encode(source, small_grid());
+    ASSERT_EQ(full.sections.front().name, "codebooks");
+    double previous = INFINITY;
+    for (size_t n = 2; n <= full.sections.size(); ++n) {
+        Package prefix = full;
+        prefix.sections.resize(n);
+        const double e = rmse(source, *mlvq_codec().open(prefix));
+        EXPECT_LE(e, previous * 1.05) << n;
+        previous = e;
+    }
+    Package only_books = full;
+    only_books.sections.resize(1);
+    EXPECT_EQ(test::error_of([&] { mlvq_codec().open(only_books); }),
+              "package (mlvq): section 'P6.2' is missing");
+}
+
+TEST(Mlvq, RejectsMalformedPackages) {
+    const Package full = mlvq_codec().encode(leather(), small_grid());
+    Package p = full;
+    p.sections[0].data.pop_back();
+    EXPECT_EQ(test::error_of([&] { mlvq_codec().open(p); }),
+              "package (mlvq): section 'codebooks' is too short");
+    p = full;
+    p.header["codebooks"]["P4"] = 0;
+    EXPECT_NE(test::error_of([&] { mlvq_codec().open(p); }).find("package (mlvq): "),
+              std::string::npos);
+    p = full;
+    p.header["grid"]["n_alpha"] = 1;
+    EXPECT_NE(test::error_of([&] { mlvq_codec().open(p); }).find("package (mlvq): "),
+              std::string::npos);
+    p = full;
+    p.header.erase("materials");
+    EXPECT_NE(test::error_of([&] { mlvq_codec().open(p); }).find("package (mlvq): bad header"),
+              std::string::npos);
+    EXPECT_EQ(test::error_of([&] {
+                  mlvq_codec().encode(leather(), Params({{"treshold", "1"}}));
+              }),
+              "codec mlvq: unknown parameter 'treshold' (known: threshold, level-factor, "
+              "chroma-threshold, measure, colour, n-alpha, n-beta, n-theta-v, n-phi-v, first, "
+              "second, growth)");
+}
+
+TEST(Mlvq, IsInTheRegistry) {
+    EXPECT_EQ(&find_codec("mlvq"), &mlvq_codec());
+}
+
+}  // namespace
+}  // namespace btf::mlvq
