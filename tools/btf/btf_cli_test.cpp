@@ -337,6 +337,9 @@ TEST_F(BtfCli, CompressErrorsGiveOneLineAndNoFile) {
     expect_error("compress " + h5 + " -o " + out + " -p colour=purple",
                  "parameter colour: 'purple' is not one of");
     expect_error("compress " + path("missing.h5") + " -o " + out, "no such file or folder");
+    expect_error("compress " + h5 + " " + h5 + " -o " + out + " --codec fmf",
+                 "fmf compresses one input; several inputs share code-books only with --codec "
+                 "mlvq");
     r = run("compress " + h5 + " -o " + path("err.h5.out"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("name the output *.btfpkg"), std::string::npos) << r.output;
@@ -347,6 +350,25 @@ TEST_F(BtfCli, CompressErrorsGiveOneLineAndNoFile) {
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("not a btfkit package or UBO2014 .btf file"), std::string::npos)
         << r.output;
+}
+
+// mlvq: several inputs share one set of code-books; info shows them as Table 3 of the paper.
+TEST_F(BtfCli, MlvqSharesCodeBooksBetweenInputs) {
+    const std::string a = path("a.h5"), b = path("b.h5"), out = path("shared.btfpkg");
+    const std::string dirs = write_small_directions(path("dirs.txt"));
+    ASSERT_EQ(run("synth --preset leather --size 8 --sampling " + dirs + " -o " + a).code, 0);
+    ASSERT_EQ(run("synth --preset woven_fabric --size 8 --sampling " + dirs + " -o " + b).code, 0);
+    CliResult r = run("compress " + a + " " + b + " -o " + out +
+                      " --codec mlvq -p n-alpha=5 -p n-beta=5 -p n-theta-v=3 -p n-phi-v=4");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find(", 2 materials, encoded in "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("  " + a + ": RMSE "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("  " + b + ": RMSE "), std::string::npos) << r.output;
+    r = run("info " + out);
+    ASSERT_EQ(r.code, 0) << r.output;
+    for (const char* row : {"materials    2 sharing the code-books", "  P1 ", "  P4 ", "  I2 ",
+                            "C.R.1 (32-bit indices and floats)", "C.R.4 (both; as stored)"})
+        EXPECT_NE(r.output.find(row), std::string::npos) << row << "\n" << r.output;
 }
 
 TEST_F(BtfCli, ConvertToDfmfThroughFmf) {

@@ -1,5 +1,6 @@
 // btf compress IN -o OUT.btfpkg --codec NAME [-p key=value ...]: encode a BTF into a package and
-// say what it cost (size, ratio) and what it lost (RMSE over every sample).
+// say what it cost (size, ratio) and what it lost (RMSE over every sample). With --codec mlvq,
+// several inputs share one set of code-books in one package.
 
 #include <chrono>
 #include <cstdio>
@@ -7,6 +8,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/material_source.h"
+#include "btf/codecs/mlvq/mlvq.h"
 #include "btf/io/package.h"
 #include "btf/util/error.h"
 #include "cli.h"
@@ -15,7 +17,8 @@ namespace btf::cli {
 
 Command register_compress(CLI::App& app, GlobalOptions& global) {
     struct Args {
-        std::string input, output, views, codec = "fmf", quantize;
+        std::vector<std::string> inputs;
+        std::string output, views, codec = "fmf", quantize;
         OpenOptions open;
         int components = 0;
         int zstd = PackageWriteOptions{}.zstd_level;
@@ -27,8 +30,9 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
         "compress",
         "Compress a BTF into a btfkit package (.btfpkg) with a codec (`btf codecs` lists them), "
         "then report size, ratio and the RMSE over every sample");
-    cmd->add_option("input", args->input,
-                    "BTF file or folder (any format btfkit reads, or a package to re-encode)")
+    cmd->add_option("input", args->inputs,
+                    "BTF file or folder (any format btfkit reads, or a package to re-encode); "
+                    "with --codec mlvq several, which then share code-books")
         ->required();
     cmd->add_option("-o,--output", args->output, "output package (*.btfpkg)")->required();
     cmd->add_option("--codec", args->codec, "codec name (`btf codecs`)");
@@ -70,32 +74,61 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
                     names.check_all_used(codec.name(), codec.params());
                 }
 
-                const auto source = open_input(args->input, args->open, args->views);
+                if (args->inputs.size() > 1 && codec.name() != "mlvq")
+                    fail(
+                        "{} compresses one input; several inputs share code-books only with "
+                        "--codec mlvq",
+                        codec.name());
+                std::vector<std::unique_ptr<BtfSource>> sources;
+                for (const std::string& input : args->inputs)
+                    sources.push_back(open_input(input, args->open, args->views));
                 Progress progress = make_progress(global);
                 const auto start = std::chrono::steady_clock::now();
-                Package package = codec.encode(*source, params, progress);
+                Package package;
+                if (sources.size() == 1) {
+                    package = codec.encode(*sources[0], params, progress);
+                } else {
+                    const mlvq::Options options = mlvq::parse_options(params);
+                    std::vector<const BtfSource*> list;
+                    for (const auto& s : sources) list.push_back(s.get());
+                    auto [books, indices] = mlvq::encode_shared(list, options, progress);
+                    for (size_t k = 0; k < indices.size(); ++k) indices[k].name = args->inputs[k];
+                    package = mlvq::to_package(books, indices, options);
+                }
                 PackageWriteOptions write_options;
                 write_options.zstd_level = args->zstd;
                 write_package(args->output, package, write_options, progress);
                 const double seconds =
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-                std::optional<double> rmse;
+                std::vector<std::optional<double>> rmse(sources.size());
                 if (!args->no_error) {
-                    const std::unique_ptr<Material> material = open_material(package);
-                    rmse = sample_rmse(*source, *material, progress);
+                    if (sources.size() == 1) {
+                        rmse[0] = sample_rmse(*sources[0], *open_material(package), progress);
+                    } else {
+                        const auto materials = mlvq::open_all(package);
+                        for (size_t k = 0; k < sources.size(); ++k)
+                            rmse[k] = sample_rmse(*sources[k], *materials[k], progress);
+                    }
                 }
-                const double raw_8bit =
-                    double(source->num_texels()) * double(source->sampling().num_images()) * 3.0;
+                double raw_8bit = 0;
+                for (const auto& source : sources)
+                    raw_8bit += double(source->num_texels()) *
+                                double(source->sampling().num_images()) * 3.0;
                 const double bytes = double(package.file_bytes);
                 std::string line = fmt::format("{}: {}, ratio {} (vs 8-bit RGB raw)", args->output,
                                                human_bytes(bytes), format_ratio(raw_8bit / bytes));
-                if (rmse) line += fmt::format(", RMSE {:.3g}", *rmse);
+                if (sources.size() == 1 && rmse[0]) line += fmt::format(", RMSE {:.3g}", *rmse[0]);
+                if (sources.size() > 1) line += fmt::format(", {} materials", sources.size());
                 line += ", encoded in " +
                         (seconds < 1 ? fmt::format("{:.2f}", seconds)
                                      : fmt::format("{:.1f}", seconds)) +
                         " s";
                 std::printf("%s\n", line.c_str());
+                if (sources.size() > 1)
+                    for (size_t k = 0; k < sources.size(); ++k)
+                        if (rmse[k])
+                            std::printf("  %s: RMSE %.3g\n", args->inputs[k].c_str(), *rmse[k]);
             }};
 }
 

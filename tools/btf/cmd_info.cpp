@@ -109,6 +109,13 @@ void package_info(const std::string& path, bool json) {
                               {"stored_bytes", g.stored},
                               {"decoded_bytes", g.decoded}});
         j["sections"]["stored"] = stored;
+        if (const auto t = package.header.find("codebook_table"); t != package.header.end()) {
+            j["codebooks"] = *t;
+            nlohmann::json ratios = nlohmann::json::array();
+            for (const auto& b : package.header.at("storage_bytes"))
+                ratios.push_back(raw_8bit / std::max(1.0, b.get<double>()));
+            j["compression_ratios"] = ratios;
+        }
         std::printf("%s\n", j.dump(2).c_str());
         return;
     }
@@ -143,6 +150,31 @@ void package_info(const std::string& path, bool json) {
             fmt::format("{}{} stored ({}), {} decoded",
                         g.count > 1 ? fmt::format("{} sections, ", g.count) : "",
                         human_bytes(double(g.stored)), coding, human_bytes(double(g.decoded))));
+    }
+    // Vector-quantization packages (mlvq): code-book sizes as in Table 3 of Havran et al. 2010,
+    // and the compression ratios of its Table 2's four representations.
+    if (const auto t = package.header.find("codebook_table"); t != package.header.end()) {
+        row("code-books", "entries, bytes stored (compact indices, 8/16-bit values)");
+        for (const auto& b : *t)
+            row("  " + b.at("name").get<std::string>(),
+                fmt::format("{:>9} {:>12}", b.at("entries").get<int64_t>(),
+                            human_bytes(b.at("bytes").get<double>())));
+        // The code-books may serve several materials: ratios against all of them.
+        double raw_all = 0;
+        for (const auto& m : package.header.at("materials"))
+            raw_all += m.at("width").get<double>() * m.at("height").get<double>() *
+                       double(m.at("views").at("theta").size()) *
+                       double(m.at("lights").at("theta").size()) * 3;
+        if (package.header.at("materials").size() > 1)
+            row("materials",
+                fmt::format("{} sharing the code-books", package.header.at("materials").size()));
+        const auto& sizes = package.header.at("storage_bytes");
+        const char* names[] = {"C.R.1 (32-bit indices and floats)", "C.R.2 (compact indices)",
+                               "C.R.3 (8/16-bit floats)", "C.R.4 (both; as stored)"};
+        for (size_t i = 0; i < 4 && i < sizes.size(); ++i)
+            row(i == 0 ? "ratios" : "",
+                fmt::format("{} {}", format_ratio(raw_all / std::max(1.0, sizes[i].get<double>())),
+                            names[i]));
     }
 }
 

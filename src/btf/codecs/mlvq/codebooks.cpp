@@ -111,38 +111,51 @@ int index_bits(size_t n) {
 }
 
 StorageSizes storage_sizes(const Codebooks& b, int64_t texels, bool hdr) {
-    // Counts of indices (with the size of the code-book they point into) and of float values
-    // (with their compact bits).
+    // Per code-book: its entries, and counts of indices (with the size of the code-book they
+    // point into) and of float values (with their compact bits).
     struct Part {
         int64_t count;
         size_t target;  // 0: a float
         int float_bits;
     };
-    const std::vector<Part> parts = {
-        {int64_t(b.p1.size()), 0, 8},
-        {int64_t(b.p2.size()), b.size_p1(), 0},
-        {int64_t(b.p2.size()), 0, hdr ? 16 : 8},
-        {int64_t(b.m.size()), b.size_p2(), 0},
-        {int64_t(b.m.size()), b.size_i2(), 0},
-        {int64_t(b.p3.size()), b.size_m(), 0},
-        {int64_t(b.p3.size()), 0, 8},
-        {int64_t(b.p4.size()), b.size_p3(), 0},
-        {int64_t(b.p4.size()), 0, 8},
-        {int64_t(b.c.size()) * 2, 0, 8},
-        {int64_t(b.i1.size()), b.size_c(), 0},
-        {int64_t(b.i2.size()), b.size_i1(), 0},
-        {texels, b.size_p4(), 0},
-        {texels, 0, 8},
+    struct Book {
+        const char* name;
+        int64_t entries;
+        std::vector<Part> parts;
+    };
+    const std::vector<Book> books = {
+        {"P1", int64_t(b.size_p1()), {{int64_t(b.p1.size()), 0, 8}}},
+        {"P2",
+         int64_t(b.size_p2()),
+         {{int64_t(b.p2.size()), b.size_p1(), 0}, {int64_t(b.p2.size()), 0, hdr ? 16 : 8}}},
+        {"M",
+         int64_t(b.size_m()),
+         {{int64_t(b.m.size()), b.size_p2(), 0}, {int64_t(b.m.size()), b.size_i2(), 0}}},
+        {"P3",
+         int64_t(b.size_p3()),
+         {{int64_t(b.p3.size()), b.size_m(), 0}, {int64_t(b.p3.size()), 0, 8}}},
+        {"P4",
+         int64_t(b.size_p4()),
+         {{int64_t(b.p4.size()), b.size_p3(), 0}, {int64_t(b.p4.size()), 0, 8}}},
+        {"C", int64_t(b.size_c()), {{int64_t(b.c.size()) * 2, 0, 8}}},
+        {"I1", int64_t(b.size_i1()), {{int64_t(b.i1.size()), b.size_c(), 0}}},
+        {"I2", int64_t(b.size_i2()), {{int64_t(b.i2.size()), b.size_i1(), 0}}},
+        {"P6", texels, {{texels, b.size_p4(), 0}, {texels, 0, 8}}},
     };
     StorageSizes s;
     std::array<int64_t, 4> bits{};
-    for (const Part& p : parts) {
-        const bool is_float = p.target == 0;
-        const int compact = is_float ? p.float_bits : index_bits(p.target);
-        bits[0] += p.count * 32;
-        bits[1] += p.count * (is_float ? 32 : compact);
-        bits[2] += p.count * (is_float ? compact : 32);
-        bits[3] += p.count * compact;
+    for (const Book& book : books) {
+        int64_t compact_bits = 0;
+        for (const Part& p : book.parts) {
+            const bool is_float = p.target == 0;
+            const int compact = is_float ? p.float_bits : index_bits(p.target);
+            bits[0] += p.count * 32;
+            bits[1] += p.count * (is_float ? 32 : compact);
+            bits[2] += p.count * (is_float ? compact : 32);
+            bits[3] += p.count * compact;
+            compact_bits += p.count * compact;
+        }
+        s.books.emplace_back(book.name, book.entries, (compact_bits + 7) / 8);
     }
     for (int i = 0; i < 4; ++i) s.bytes[size_t(i)] = (bits[size_t(i)] + 7) / 8;
     return s;

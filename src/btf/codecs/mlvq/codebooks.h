@@ -36,6 +36,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "btf/codecs/mlvq/parametrization.h"
@@ -108,6 +109,8 @@ struct TexelIndex {
 /// (what btfkit stores).
 struct StorageSizes {
     std::array<int64_t, 4> bytes{};
+    /// Per code-book (P1, P2, M, P3, P4, C, I1, I2, P6): entries and bytes in C.R.4's form.
+    std::vector<std::tuple<std::string, int64_t, int64_t>> books;
 };
 StorageSizes storage_sizes(const Codebooks& books, int64_t texels, bool hdr);
 

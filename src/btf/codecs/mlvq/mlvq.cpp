@@ -150,94 +150,147 @@ Options parse_options(const Params& params) {
     return o;
 }
 
-std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& options,
-                                        Progress& progress, EncodeReport* report) {
-    const std::string what = factor::source_name(source);
-    check(source.num_texels() > 0 && source.num_views() > 0 && source.num_lights() > 0,
-          "{}: mlvq: empty BTF", what);
+std::pair<Codebooks, std::vector<TexelIndex>> encode_shared(
+    std::span<const BtfSource* const> sources, const Options& options, Progress& progress,
+    EncodeReport* report) {
+    check(!sources.empty(), "mlvq: no material to encode");
     EncoderOptions eo = options.encoder;
-    if (options.colour_auto)
-        eo.colour = source.info().hdr ? ColourModel::kLogLuv : ColourModel::kYCbCr;
+    bool hdr = false;
+    for (const BtfSource* source : sources) {
+        check(source->num_texels() > 0 && source->num_views() > 0 && source->num_lights() > 0,
+              "{}: mlvq: empty BTF", factor::source_name(*source));
+        hdr = hdr || source->info().hdr;
+    }
+    if (options.colour_auto) eo.colour = hdr ? ColourModel::kLogLuv : ColourModel::kYCbCr;
     Encoder encoder(eo);
-    const Resampler resampler(eo.grid, source.sampling());
     const int64_t n4 = eo.grid.samples(), length = 3 * n4;
-    const int width = source.width(), height = source.height();
-    const int64_t texels = source.num_texels();
     EncodeReport stats;
-    stats.texels = texels;
 
-    // Training texels: Halton order, step 1 first.
-    const int64_t first = std::max<int64_t>(1, std::llround(options.first_fraction * texels));
-    const int64_t second = std::llround(options.second_fraction * texels);
-    const std::vector<int64_t> trained = halton_texels(width, height, first + second);
-    std::vector<int64_t> slot(static_cast<size_t>(texels), -1);
-    for (size_t i = 0; i < trained.size(); ++i) slot[size_t(trained[i])] = int64_t(i);
-    std::vector<float> training(trained.size() * size_t(length));
-    const int rows = band_rows(source, length, options.memory_bytes);
+    // Per material: its resampler, training texels (Halton order, step 1 first) and where they
+    // sit in the training array.
+    struct Part {
+        const BtfSource* source;
+        std::unique_ptr<Resampler> resampler;
+        std::vector<int64_t> trained, slot;
+        int64_t first = 0;
+        int rows = 1;
+        std::vector<float> training;
+        std::vector<IndexScale> p6;
+    };
+    std::vector<Part> parts;
+    uint64_t read_units = 0;
+    for (const BtfSource* source : sources) {
+        Part part;
+        part.source = source;
+        part.resampler = std::make_unique<Resampler>(eo.grid, source->sampling());
+        const int64_t texels = source->num_texels();
+        part.first = std::max<int64_t>(1, std::llround(options.first_fraction * texels));
+        const int64_t second = std::llround(options.second_fraction * texels);
+        part.trained = halton_texels(source->width(), source->height(), part.first + second);
+        part.slot.assign(size_t(texels), -1);
+        for (size_t i = 0; i < part.trained.size(); ++i)
+            part.slot[size_t(part.trained[i])] = int64_t(i);
+        part.rows = band_rows(*source, length, options.memory_bytes);
+        part.p6.resize(size_t(texels));
+        read_units += uint64_t(source->num_views()) * source->num_lights() *
+                      uint64_t((source->height() + part.rows - 1) / part.rows);
+        stats.texels += texels;
+        parts.push_back(std::move(part));
+    }
 
     double t0 = now();
-    progress.begin(
-        "mlvq: reading training texels",
-        uint64_t(source.num_views()) * source.num_lights() * ((height + rows - 1) / rows));
-    for (int y0 = 0; y0 < height; y0 += rows) {
-        const int n = std::min(rows, height - y0);
-        const SourceTexels raw = read_rows(source, y0, n, progress);
-        parallel_for(0, int64_t(n) * width, [&](int64_t local) {
-            const int64_t s = slot[size_t(int64_t(y0) * width + local)];
-            if (s < 0) return;
-            float* f = training.data() + size_t(s) * length;
-            resampler.resample(raw, local, 1, f);
-            to_planes_in_place(eo.colour, f, n4);
-        });
+    progress.begin("mlvq: reading training texels", read_units);
+    for (Part& part : parts) {
+        const BtfSource& source = *part.source;
+        const int width = source.width();
+        part.training.resize(part.trained.size() * size_t(length));
+        for (int y0 = 0; y0 < source.height(); y0 += part.rows) {
+            const int n = std::min(part.rows, source.height() - y0);
+            const SourceTexels raw = read_rows(source, y0, n, progress);
+            parallel_for(0, int64_t(n) * width, [&](int64_t local) {
+                const int64_t s = part.slot[size_t(int64_t(y0) * width + local)];
+                if (s < 0) return;
+                float* f = part.training.data() + size_t(s) * length;
+                part.resampler->resample(raw, local, 1, f);
+                to_planes_in_place(eo.colour, f, n4);
+            });
+        }
     }
     progress.finish();
     stats.seconds_reading = now() - t0;
 
+    // Steps 1 and 2 over all materials: the code-books describe all of them.
     t0 = now();
-    std::vector<IndexScale> p6(static_cast<size_t>(texels));
-    progress.begin("mlvq: training code-books", uint64_t(trained.size()));
-    for (size_t i = 0; i < trained.size(); ++i) {
-        if (int64_t(i) == first) encoder.scale_thresholds(options.growth);
-        p6[size_t(trained[i])] =
-            encoder.insert(std::span<const float>(training.data() + i * length, size_t(length)));
-        progress.advance();
+    uint64_t total = 0;
+    for (const Part& part : parts) total += part.trained.size();
+    progress.begin("mlvq: training code-books", total);
+    for (int step = 0; step < 2; ++step) {
+        if (step == 1) encoder.scale_thresholds(options.growth);
+        for (Part& part : parts) {
+            const size_t begin = step == 0 ? 0 : size_t(part.first);
+            const size_t end = step == 0
+                                   ? size_t(std::min<int64_t>(part.first, part.trained.size()))
+                                   : part.trained.size();
+            for (size_t i = begin; i < end; ++i) {
+                part.p6[size_t(part.trained[i])] = encoder.insert(
+                    std::span<const float>(part.training.data() + i * length, size_t(length)));
+                progress.advance();
+            }
+        }
     }
     progress.finish();
-    training = {};
+    for (Part& part : parts) {
+        part.training = {};
+        stats.trained += int64_t(part.trained.size());
+    }
     encoder.freeze();
-    stats.trained = int64_t(trained.size());
     stats.seconds_training = now() - t0;
 
     t0 = now();
-    progress.begin("mlvq: encoding texels", uint64_t(source.num_views()) * source.num_lights() *
-                                                ((height + rows - 1) / rows));
+    progress.begin("mlvq: encoding texels", read_units);
     std::vector<float> band;
-    for (int y0 = 0; y0 < height; y0 += rows) {
-        const int n = std::min(rows, height - y0);
-        const SourceTexels raw = read_rows(source, y0, n, progress);
-        band.resize(size_t(n) * width * size_t(length));
-        resampler.resample(raw, band);
-        parallel_for(0, int64_t(n) * width, [&](int64_t t) {
-            to_planes_in_place(eo.colour, band.data() + size_t(t) * length, n4);
-        });
-        const std::vector<IndexScale> found = encoder.nearest(band);
-        for (int64_t t = 0; t < int64_t(n) * width; ++t)
-            if (slot[size_t(int64_t(y0) * width + t)] < 0)
-                p6[size_t(int64_t(y0) * width + t)] = found[size_t(t)];
+    for (Part& part : parts) {
+        const BtfSource& source = *part.source;
+        const int width = source.width();
+        for (int y0 = 0; y0 < source.height(); y0 += part.rows) {
+            const int n = std::min(part.rows, source.height() - y0);
+            const SourceTexels raw = read_rows(source, y0, n, progress);
+            band.resize(size_t(n) * width * size_t(length));
+            part.resampler->resample(raw, band);
+            parallel_for(0, int64_t(n) * width, [&](int64_t t) {
+                to_planes_in_place(eo.colour, band.data() + size_t(t) * length, n4);
+            });
+            const std::vector<IndexScale> found = encoder.nearest(band);
+            for (int64_t t = 0; t < int64_t(n) * width; ++t)
+                if (part.slot[size_t(int64_t(y0) * width + t)] < 0)
+                    part.p6[size_t(int64_t(y0) * width + t)] = found[size_t(t)];
+        }
     }
     progress.finish();
     stats.seconds_frozen = now() - t0;
     if (report) *report = stats;
 
-    TexelIndex index;
-    index.name = source.info().path.empty() ? std::string(source.info().format)
-                                            : source.info().path.filename().string();
-    index.width = width;
-    index.height = height;
-    index.sampling = source.sampling();
-    index.hdr = source.info().hdr;
-    index.p6 = std::move(p6);
-    return {encoder.codebooks(), std::move(index)};
+    std::vector<TexelIndex> indices;
+    for (Part& part : parts) {
+        const BtfSource& source = *part.source;
+        TexelIndex index;
+        index.name = source.info().path.empty() ? std::string(source.info().format)
+                                                : source.info().path.filename().string();
+        index.width = source.width();
+        index.height = source.height();
+        index.sampling = source.sampling();
+        index.hdr = source.info().hdr;
+        index.p6 = std::move(part.p6);
+        indices.push_back(std::move(index));
+    }
+    return {encoder.codebooks(), std::move(indices)};
+}
+
+std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& options,
+                                        Progress& progress, EncodeReport* report) {
+    const BtfSource* sources[] = {&source};
+    auto [books, indices] = encode_shared(sources, options, progress, report);
+    return {std::move(books), std::move(indices[0])};
 }
 
 // ---- evaluation ---------------------------------------------------------------------------------
@@ -317,6 +370,120 @@ Rgb MlvqMaterial::eval_sample(int x, int y, int view, int light) const {
     return from_planes(m_books->colour, p[0], p[1], p[2]);
 }
 
+Package to_package(const Codebooks& books, const std::vector<TexelIndex>& materials,
+                   const Options& o) {
+    check(!materials.empty(), "mlvq: a package needs a material");
+    Package package;
+    auto& h = package.header;
+    h["codec"] = kName;
+    const EncoderOptions& e = o.encoder;
+    h["params"] = {{"threshold", e.threshold},
+                   {"level-factor", e.level_factor},
+                   {"chroma-threshold", e.threshold_i2},
+                   {"measure", e.measure == Measure::mse ? "mse" : "mssim"},
+                   {"colour", o.colour_auto ? "auto" : to_string(e.colour)},
+                   {"n-alpha", e.grid.n_alpha},
+                   {"n-beta", e.grid.n_beta},
+                   {"n-theta-v", e.grid.n_theta_v},
+                   {"n-phi-v", e.grid.n_phi_v},
+                   {"first", o.first_fraction},
+                   {"second", o.second_fraction},
+                   {"growth", o.growth}};
+    // The first material's extent and sampling describe the package for generic tools.
+    const TexelIndex& first = materials.front();
+    h["width"] = first.width;
+    h["height"] = first.height;
+    h["views"] = factor::directions_json(first.sampling.views);
+    h["lights"] = factor::directions_json(first.sampling.lights);
+    bool hdr = false;
+    for (const TexelIndex& m : materials) hdr = hdr || m.hdr;
+    h["hdr"] = first.hdr;
+    h["raw_bytes_8bit"] = int64_t(first.width) * first.height * first.sampling.num_images() * 3;
+    write_codebooks(books, hdr, h, package.sections);
+
+    // P6 sections coarse to fine, the materials interleaved level by level.
+    nlohmann::json list = nlohmann::json::array();
+    std::vector<std::vector<PackageSection>> p6(materials.size());
+    int64_t texels = 0;
+    for (size_t k = 0; k < materials.size(); ++k) {
+        const TexelIndex& m = materials[k];
+        nlohmann::json entry;
+        const std::string prefix = materials.size() == 1 ? "" : fmt::format("m{}.", k);
+        entry["name"] = m.name;
+        entry["prefix"] = prefix;
+        entry["width"] = m.width;
+        entry["height"] = m.height;
+        entry["views"] = factor::directions_json(m.sampling.views);
+        entry["lights"] = factor::directions_json(m.sampling.lights);
+        entry["hdr"] = m.hdr;
+        write_texel_index(m, books.size_p4(), prefix, entry, p6[k]);
+        list.push_back(entry);
+        texels += int64_t(m.width) * m.height;
+    }
+    for (size_t level = 0;; ++level) {
+        bool any = false;
+        for (auto& sections : p6)
+            if (level < sections.size()) {
+                package.sections.push_back(std::move(sections[level]));
+                any = true;
+            }
+        if (!any) break;
+    }
+    h["materials"] = list;
+    const StorageSizes sizes = storage_sizes(books, texels, hdr);
+    h["storage_bytes"] = sizes.bytes;  // C.R.1 … C.R.4 representations (all materials)
+    nlohmann::json table = nlohmann::json::array();
+    for (const auto& [name, entries, bytes] : sizes.books)
+        table.push_back({{"name", name}, {"entries", entries}, {"bytes", bytes}});
+    h["codebook_table"] = table;
+    package.declared_sections = static_cast<int>(package.sections.size());
+    return package;
+}
+
+std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
+    const std::string what = "package (mlvq)";
+    if (package.codec() != kName)
+        fail("package of codec '{}' opened as {}", package.codec(), kName);
+    try {
+        auto books = std::make_shared<const Codebooks>(read_codebooks(package));
+        std::vector<std::unique_ptr<MlvqMaterial>> out;
+        const nlohmann::json& list = package.header.at("materials");
+        if (!list.is_array() || list.empty()) fail("no materials");
+        std::string missing;
+        for (const nlohmann::json& m : list) {
+            TexelIndex index;
+            index.name = m.at("name").get<std::string>();
+            index.width = m.at("width").get<int>();
+            index.height = m.at("height").get<int>();
+            if (index.width < 1 || index.height < 1 || index.width > (1 << 16) ||
+                index.height > (1 << 16))
+                fail("bad extent {}×{}", index.width, index.height);
+            index.sampling.views = factor::directions_from_json(m.at("views"));
+            index.sampling.lights = factor::directions_from_json(m.at("lights"));
+            index.hdr = m.value("hdr", false);
+            const std::string prefix = m.at("prefix").get<std::string>();
+            const int levels = texel_index_levels(index.width, index.height);
+            if (!package.find(fmt::format("{}P6.{}", prefix, levels - 1))) {
+                // Not yet received (a prefix of the stream).
+                if (missing.empty()) missing = fmt::format("{}P6.{}", prefix, levels - 1);
+                continue;
+            }
+            index.p6 =
+                read_texel_index(package, m, prefix, index.width, index.height, books->size_p4());
+            out.push_back(std::make_unique<MlvqMaterial>(books, std::move(index)));
+        }
+        if (out.empty()) fail("section '{}' is missing", missing);
+        return out;
+    } catch (const nlohmann::json::exception& e) {
+        fail("{}: bad header: {}", what, e.what());
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        if (std::string_view(e.what()).starts_with(what)) throw;
+        fail("{}: {}", what, e.what());
+    }
+}
+
 }  // namespace mlvq
 
 namespace {
@@ -332,69 +499,13 @@ class MlvqCodec final : public Codec {
     Package encode(const BtfSource& source, const Params& params,
                    Progress& progress) const override {
         const mlvq::Options o = mlvq::parse_options(params);
-        const auto [books, index] = mlvq::encode(source, o, progress);
-        Package package;
-        auto& h = package.header;
-        h["codec"] = mlvq::kName;
-        const mlvq::EncoderOptions& e = o.encoder;
-        h["params"] = {{"threshold", e.threshold},
-                       {"level-factor", e.level_factor},
-                       {"chroma-threshold", e.threshold_i2},
-                       {"measure", e.measure == mlvq::Measure::mse ? "mse" : "mssim"},
-                       {"colour", o.colour_auto ? "auto" : mlvq::to_string(e.colour)},
-                       {"n-alpha", e.grid.n_alpha},
-                       {"n-beta", e.grid.n_beta},
-                       {"n-theta-v", e.grid.n_theta_v},
-                       {"n-phi-v", e.grid.n_phi_v},
-                       {"first", o.first_fraction},
-                       {"second", o.second_fraction},
-                       {"growth", o.growth}};
-        h["width"] = index.width;
-        h["height"] = index.height;
-        h["views"] = factor::directions_json(index.sampling.views);
-        h["lights"] = factor::directions_json(index.sampling.lights);
-        h["hdr"] = index.hdr;
-        h["raw_bytes_8bit"] = int64_t(index.width) * index.height * index.sampling.num_images() * 3;
-        mlvq::write_codebooks(books, index.hdr, h, package.sections);
-        nlohmann::json material;
-        material["name"] = index.name;
-        mlvq::write_texel_index(index, books.size_p4(), "", material, package.sections);
-        h["materials"] = nlohmann::json::array({material});
-        const mlvq::StorageSizes sizes =
-            mlvq::storage_sizes(books, int64_t(index.width) * index.height, index.hdr);
-        h["storage_bytes"] = sizes.bytes;
-        package.declared_sections = static_cast<int>(package.sections.size());
-        return package;
+        auto [books, index] = mlvq::encode(source, o, progress);
+        return mlvq::to_package(books, {std::move(index)}, o);
     }
 
     std::unique_ptr<Material> open(const Package& package) const override {
-        if (package.codec() != mlvq::kName)
-            fail("package of codec '{}' opened as {}", package.codec(), mlvq::kName);
-        try {
-            const auto& h = package.header;
-            auto books = std::make_shared<const mlvq::Codebooks>(mlvq::read_codebooks(package));
-            mlvq::TexelIndex index;
-            index.width = h.at("width").get<int>();
-            index.height = h.at("height").get<int>();
-            if (index.width < 1 || index.height < 1 || index.width > (1 << 16) ||
-                index.height > (1 << 16))
-                fail("bad extent {}×{}", index.width, index.height);
-            index.sampling.views = factor::directions_from_json(h.at("views"));
-            index.sampling.lights = factor::directions_from_json(h.at("lights"));
-            index.hdr = h.value("hdr", false);
-            const nlohmann::json& material = h.at("materials").at(0);
-            index.name = material.at("name").get<std::string>();
-            index.p6 = mlvq::read_texel_index(package, material, "", index.width, index.height,
-                                              books->size_p4());
-            return std::make_unique<mlvq::MlvqMaterial>(std::move(books), std::move(index));
-        } catch (const nlohmann::json::exception& e) {
-            fail("package (mlvq): bad header: {}", e.what());
-        } catch (const Cancelled&) {
-            throw;
-        } catch (const Error& e) {
-            if (std::string_view(e.what()).starts_with("package (mlvq)")) throw;
-            fail("package (mlvq): {}", e.what());
-        }
+        std::vector<std::unique_ptr<mlvq::MlvqMaterial>> all = mlvq::open_all(package);
+        return std::move(all.front());
     }
 };
 

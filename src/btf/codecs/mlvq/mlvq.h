@@ -3,6 +3,8 @@
 /// user documentation, codebooks.h for the model and encoder.h for the quantization.
 
 #include <memory>
+#include <span>
+#include <vector>
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/mlvq/codebooks.h"
@@ -14,6 +16,8 @@ namespace btf {
 const Codec& mlvq_codec();
 
 namespace mlvq {
+
+class MlvqMaterial;
 
 struct Options {
     EncoderOptions encoder;
@@ -34,6 +38,23 @@ struct EncodeReport {
     int64_t texels = 0;
     double seconds_reading = 0, seconds_training = 0, seconds_frozen = 0;
 };
+
+/// Code-books shared by several materials (§5.1, Table 2 C.R.5) and the P6 of each: training
+/// steps 1 and 2 insert the Halton texels of every material, then each material's other texels
+/// take their nearest P4 entries. All code-books are shared (the paper shares the luminance
+/// ones; sharing P4, P3 and M as well lets similar materials reuse whole apparent BRDFs). The
+/// colour model is LogLuv when any source is HDR (colour=auto).
+std::pair<Codebooks, std::vector<TexelIndex>> encode_shared(
+    std::span<const BtfSource* const> sources, const Options& options,
+    Progress& progress = Progress::none(), EncodeReport* report = nullptr);
+
+/// A package of code-books and materials (one, or several sharing the code-books).
+Package to_package(const Codebooks& books, const std::vector<TexelIndex>& materials,
+                   const Options& options);
+/// Every material of a package (or a clean prefix: the code-books and at least the coarsest P6
+/// level of a material; materials whose P6 has not arrived are left out). Throws btf::Error
+/// naming the problem for malformed packages.
+std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package);
 
 /// The code-books and P6 of `source`.
 std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& options,

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <memory>
+#include <vector>
 
 #include "btf/io/function_source.h"
 #include "btf/synth/synth.h"
@@ -212,6 +213,35 @@ TEST(Mlvq, RejectsMalformedPackages) {
               "codec mlvq: unknown parameter 'treshold' (known: threshold, level-factor, "
               "chroma-threshold, measure, colour, n-alpha, n-beta, n-theta-v, n-phi-v, first, "
               "second, growth)");
+}
+
+// Several materials in one package share the code-books (§5.1, C.R.5): each decodes about as
+// well as from its own package, and the shared package is smaller than the separate ones.
+TEST(Mlvq, SharedCodeBooksDecodeEachMaterial) {
+    const auto other = test::cached(*synth::make("leather", 16, test::ubo_subset(8, 12), 6));
+    const auto fabric = test::cached(*synth::make("woven_fabric", 8, test::ubo_subset(6, 9), 2));
+    const std::vector<const BtfSource*> sources = {&leather(), other.get(), fabric.get()};
+    const Options options = parse_options(small_grid());
+    auto [books, indices] = encode_shared(sources, options);
+    ASSERT_EQ(indices.size(), 3u);
+    Package shared = to_package(books, indices, options);
+    const auto materials = open_all(decode_package(encode_package(shared), "shared"));
+    ASSERT_EQ(materials.size(), 3u);
+    size_t separate = 0;
+    for (size_t k = 0; k < sources.size(); ++k) {
+        EXPECT_EQ(materials[k]->width(), sources[k]->width());
+        EXPECT_EQ(materials[k]->sampling().num_lights(), sources[k]->num_lights());
+        Package own = mlvq_codec().encode(*sources[k], small_grid());
+        separate += encode_package(own).size();
+        const double alone = rmse(*sources[k], *mlvq_codec().open(own));
+        EXPECT_LT(rmse(*sources[k], *materials[k]), 1.15 * alone) << k;
+    }
+    EXPECT_LT(encode_package(shared).size(), separate);
+    EXPECT_EQ(shared.header.at("materials").size(), 3u);
+    // A prefix holding the code-books and the coarsest P6 of the first material opens that one.
+    Package prefix = shared;
+    prefix.sections.resize(2);
+    EXPECT_EQ(open_all(prefix).size(), 1u);
 }
 
 TEST(Mlvq, IsInTheRegistry) {
