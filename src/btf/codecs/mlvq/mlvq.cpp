@@ -304,12 +304,42 @@ MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex in
     for (const IndexScale& e : m_index.p6)
         check(e.index < m_books->size_p4(), "mlvq material: P6 points to P4 {} of {}", e.index,
               m_books->size_p4());
+    const Codebooks& b = *m_books;
+    const MlvqGrid& g = b.grid;
+    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+    auto merged = std::make_shared<std::vector<float>>(b.size_m() * n2 * 3);
+    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
+        const std::array<uint32_t, 2>& merge = b.m[size_t(e)];
+        float* out = merged->data() + size_t(e) * n2 * 3;
+        for (int i = 0; i < g.n_alpha; ++i) {
+            const IndexScale& e2 = b.p2[size_t(merge[0]) * g.n_alpha + i];
+            const float* slice = b.p1.data() + size_t(e2.index) * g.n_beta;
+            const uint32_t* chroma =
+                b.i1.data() + size_t(b.i2[size_t(merge[1]) * g.n_alpha + i]) * g.n_beta;
+            for (int j = 0; j < g.n_beta; ++j) {
+                float* o = out + (size_t(i) * g.n_beta + j) * 3;
+                o[0] = e2.scale * slice[j];
+                o[1] = b.c[chroma[j]][0];
+                o[2] = b.c[chroma[j]][1];
+            }
+        }
+    });
+    m_merged = std::move(merged);
 }
 
 std::array<float, 3> MlvqMaterial::planes(int64_t texel, const MlvqWeights& w) const {
     const Codebooks& b = *m_books;
     const MlvqGrid& g = b.grid;
+    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
     const IndexScale& e6 = m_index.p6[size_t(texel)];
+    // The 2 × 2 (α, β) corners as offsets into an M entry's decoded samples, and their weights.
+    size_t corner[4];
+    float weight[4];
+    for (int a = 0; a < 2; ++a)
+        for (int q = 0; q < 2; ++q) {
+            corner[a * 2 + q] = (size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3;
+            weight[a * 2 + q] = w.alpha.weight[a] * w.beta.weight[q];
+        }
     float y = 0, c1 = 0, c2 = 0;
     for (int p = 0; p < 2; ++p) {
         const float wp = w.phi_v.weight[p];
@@ -319,24 +349,13 @@ std::array<float, 3> MlvqMaterial::planes(int64_t texel, const MlvqWeights& w) c
             const float wt = wp * w.theta_v.weight[t];
             if (wt == 0) continue;
             const IndexScale& e3 = b.p3[size_t(e4.index) * g.n_theta_v + w.theta_v.index[t]];
-            const std::array<uint32_t, 2>& merge = b.m[e3.index];
-            const float scale = e6.scale * e4.scale * e3.scale;
-            for (int a = 0; a < 2; ++a) {
-                const float wa = wt * w.alpha.weight[a];
-                if (wa == 0) continue;
-                const int i = w.alpha.index[a];
-                const IndexScale& e2 = b.p2[size_t(merge[0]) * g.n_alpha + i];
-                const float* slice = b.p1.data() + size_t(e2.index) * g.n_beta;
-                const uint32_t* chroma =
-                    b.i1.data() + size_t(b.i2[size_t(merge[1]) * g.n_alpha + i]) * g.n_beta;
-                for (int q = 0; q < 2; ++q) {
-                    const float wb = wa * w.beta.weight[q];
-                    const int j = w.beta.index[q];
-                    y += wb * scale * e2.scale * slice[j];
-                    const std::array<float, 2>& c = b.c[chroma[j]];
-                    c1 += wb * c[0];
-                    c2 += wb * c[1];
-                }
+            const float* m = m_merged->data() + size_t(e3.index) * n2 * 3;
+            const float scale = wt * e6.scale * e4.scale * e3.scale;
+            for (int k = 0; k < 4; ++k) {
+                const float* v = m + corner[k];
+                y += scale * weight[k] * v[0];
+                c1 += wt * weight[k] * v[1];
+                c2 += wt * weight[k] * v[2];
             }
         }
     }

@@ -80,6 +80,10 @@ class MlvqMaterial final : public Material {
   private:
     std::shared_ptr<const Codebooks> m_books;
     TexelIndex m_index;
+    /// Per M entry its 2-D light function decoded: nα × nβ samples of (Y normalized, c₁, c₂),
+    /// shared by every material of the code-books. Evaluation then follows P6 → P4 → P3 → M and
+    /// reads the 2 × 2 (α, β) corners there instead of walking P2, P1, I2, I1 and C per corner.
+    std::shared_ptr<const std::vector<float>> m_merged;
 };
 
 }  // namespace mlvq

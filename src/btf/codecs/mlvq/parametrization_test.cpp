@@ -285,13 +285,13 @@ TEST(MlvqLookup, WeightsArePartitionsOfUnity) {
             }
         }
         EXPECT_EQ(w.phi_v.index[1], (w.phi_v.index[0] + 1) % g.n_phi_v);
-        // The vector form equals the coordinate form.
+        // The vector form (fast atan2) equals the coordinate form (libm) to float precision.
         const MlvqWeights c = lookup(g, to_mlvq(wi, wo));
         for (int q = 0; q < 2; ++q) {
             EXPECT_NEAR(c.alpha.weight[q], w.alpha.weight[q], 1e-6);
             EXPECT_NEAR(c.beta.weight[q], w.beta.weight[q], 1e-6);
-            EXPECT_EQ(c.theta_v.weight[q], w.theta_v.weight[q]);
-            EXPECT_EQ(c.phi_v.weight[q], w.phi_v.weight[q]);
+            EXPECT_NEAR(c.theta_v.weight[q], w.theta_v.weight[q], 1e-6);
+            EXPECT_NEAR(c.phi_v.weight[q], w.phi_v.weight[q], 1e-6);
         }
         float total = 0;
         for (int c = 0; c < 16; ++c) total += w.weight(c & 1, c >> 1 & 1, c >> 2 & 1, c >> 3);
