@@ -18,3 +18,4 @@ echo; echo "## quality: per-image measures throughput"; "$build/quality_bench" -
 echo; echo "## quality: BTF-CIELab wall time and memory"; "$build/btf_cielab_bench" --size 256 --grid 5
 echo; echo "## quality: perceptual vs fmf at equal size"; bash "$(dirname "$0")/perceptual_vs_fmf.sh" "$build" 16 64 3
 echo; echo "## quality: high-frequency omission"; bash "$(dirname "$0")/perceptual_omission.sh" "$build" 32 64 3
+echo; echo "## mlvq: code-vector search"; "$build/mlvq_vq_bench" --size 64

@@ -646,15 +646,20 @@ bool Codebook::mssim_rejects(const Query& q, uint32_t id, double bound) const {
     size_t over = 0;
     for (uint32_t ch = 0; ch < layout.channels; ++ch) {
         const double s = m_options.kind == Kind::luminance && ch == 0 ? q.scale : 1.0;
-        const size_t end = (ch + 1) * nc;
-        for (size_t i = ch * nc; i < end; i += 8) {
-            const size_t stop = std::min(end, i + 8);
-            for (size_t j = i; j < stop; ++j) {
-                const double x = qmean[j], y = s * cmean[j];
-                over += std::abs(2 * x * y + c1) < c * (x * x + y * y + c1);
-            }
+        const size_t begin = ch * nc, end = (ch + 1) * nc;
+        const auto count = [&](size_t j) {
+            const double x = qmean[j], y = s * cmean[j];
+            return size_t(std::abs(2 * x * y + c1) < c * (x * x + y * y + c1));
+        };
+        size_t i = begin;
+        for (; i + 8 <= end; i += 8) {
+            size_t block = 0;
+            for (size_t j = i; j < i + 8; ++j) block += count(j);
+            over += block;
             if (over > ss.outliers) return true;
         }
+        for (; i < end; ++i) over += count(i);
+        if (over > ss.outliers) return true;
     }
     return false;
 }

@@ -144,8 +144,9 @@ struct CodebookOptions {
     double threshold = 0;
     SsimOptions ssim;
     /// The index: principal coordinates per channel group in the signatures (at most the
-    /// group's length). Any value gives the same results; 8 was fastest on 11- and 121-value
-    /// slices (bench/mlvq_vq_bench.cpp).
+    /// group's length). Any value gives the same results, only the speed differs: on the
+    /// benchmark's slices (bench/mlvq_vq_bench.cpp) 8 was fastest for P1 × 20000 (4: 7.7× slower,
+    /// 11: 5 % slower) and as fast as 4 for P2 × 5000 (16: 35 % slower).
     uint32_t index_dims = 8;
 };
 
@@ -167,9 +168,8 @@ struct Match {
 };
 
 /// Counters of the work of searches (for tests and benchmarks), summed over searches: code-vectors
-/// compared (their error computed, in full or until abandoned; mse: those the index did not
-/// prune; mssim: those the mean filter did not reject), code-vectors in the code-book, and the
-/// index's own work.
+/// compared (their error computed, in full or until abandoned; mssim: those that passed the
+/// index and the per-value test), code-vectors in the code-book, and the index's own work.
 struct SearchStats {
     uint64_t searches = 0;
     uint64_t compared = 0;
@@ -207,7 +207,7 @@ class Codebook {
     Match find_brute_force(std::span<const float> query, double threshold) const;
 
     /// Appends `values` as a code-vector (normalized if luminance) whatever the code-book holds;
-    /// returns its index and scale.
+    /// returns its index and scale. Throws btf::Error as find() does.
     Match add(std::span<const float> values);
     /// The paper's rule: find(), and add() the query when nothing is within the threshold.
     Match find_or_add(std::span<const float> query);
@@ -219,10 +219,11 @@ class Codebook {
     std::vector<Match> find_batch(std::span<const float> queries) const;
     std::vector<Match> find_batch(std::span<const float> queries, double threshold) const;
 
-    /// Refits the mse index to all code-vectors and rebuilds its tree with none left over to
-    /// scan; worth calling once when a code-book stops growing. Results do not change.
+    /// Refits the index to all code-vectors and rebuilds its tree with none left over to scan;
+    /// worth calling once when a code-book stops growing. Results do not change.
     void rebuild_index();
 
+    /// Reserves memory for this many code-vectors.
     void reserve(size_t code_vectors);
 
   private:
@@ -243,8 +244,8 @@ class Codebook {
     size_t m_length = 0;
     size_t m_groups[2] = {0, 0};     ///< lengths of the channel groups (luminance, the rest)
     std::vector<float> m_data;       ///< code-vectors, stored form
-    std::unique_ptr<Index> m_index;  ///< mse
-    std::unique_ptr<Ssim> m_ssim;    ///< mssim
+    std::unique_ptr<Index> m_index;  ///< over the code-vectors (mse) or their means (mssim)
+    std::unique_ptr<Ssim> m_ssim;    ///< mssim only
 };
 
 }  // namespace btf::mlvq

@@ -28,7 +28,7 @@ CodebookOptions options(std::vector<uint32_t> dims, Kind kind, Measure measure, 
     return o;
 }
 
-// Vectors laid end to end.
+// A list of vectors.
 using Vectors = std::vector<std::vector<float>>;
 
 Vectors uniform_vectors(size_t count, size_t length, uint64_t seed, float lo = 0, float hi = 1) {
