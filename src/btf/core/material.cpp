@@ -1,0 +1,44 @@
+#include "btf/core/material.h"
+
+#include "btf/core/light_sampler.h"
+
+namespace btf {
+
+namespace detail {
+
+LazyLightSampler& LazyLightSampler::operator=(const LazyLightSampler&) {
+    // The assigned material has new contents: a sampler built for the old ones would be stale.
+    delete m_sampler.exchange(nullptr, std::memory_order_acq_rel);
+    return *this;
+}
+
+LazyLightSampler::~LazyLightSampler() {
+    delete m_sampler.load(std::memory_order_acquire);
+}
+
+const LightSampler& LazyLightSampler::get(const Material& material) const {
+    if (const LightSampler* s = m_sampler.load(std::memory_order_acquire)) return *s;
+    std::lock_guard lock(m_mutex);
+    const LightSampler* s = m_sampler.load(std::memory_order_relaxed);
+    if (!s) {
+        s = new LightSampler(material);
+        m_sampler.store(s, std::memory_order_release);
+    }
+    return *s;
+}
+
+}  // namespace detail
+
+LightSample Material::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+    return generic_sampler().sample(uv, wo, xi1, xi2);
+}
+
+double Material::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
+    return generic_sampler().pdf(uv, wo, wi);
+}
+
+Rgb Material::albedo(const Uv& uv, const Vec3& wo) const {
+    return quadrature_albedo(*this, uv, wo);
+}
+
+}  // namespace btf
