@@ -324,7 +324,27 @@ MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex in
             }
         }
     });
+    // Row integrals over u of each entry's luminance (trapezoid in sample-index units) and
+    // their total over α: what importance sampling picks rows and components with.
+    const size_t stride = size_t(g.n_alpha) + 1;
+    auto rows = std::make_shared<std::vector<float>>(b.size_m() * stride);
+    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
+        const float* f = merged->data() + size_t(e) * n2 * 3;
+        float* r = rows->data() + size_t(e) * stride;
+        double total = 0;
+        for (int i = 0; i < g.n_alpha; ++i) {
+            double sum = 0;
+            for (int j = 0; j < g.n_beta; ++j) {
+                const double y = f[(size_t(i) * g.n_beta + j) * 3];
+                sum += (j == 0 || j == g.n_beta - 1) ? 0.5 * y : y;
+            }
+            r[i] = float(sum);
+            total += (i == 0 || i == g.n_alpha - 1) ? 0.5 * sum : sum;
+        }
+        r[g.n_alpha] = float(total);
+    });
     m_merged = std::move(merged);
+    m_rows = std::move(rows);
 }
 
 std::array<float, 3> MlvqMaterial::planes(int64_t texel, const MlvqWeights& w) const {
@@ -363,7 +383,27 @@ std::array<float, 3> MlvqMaterial::planes(int64_t texel, const MlvqWeights& w) c
 }
 
 Rgb MlvqMaterial::eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const {
-    const MlvqWeights w = lookup(m_books->grid, wi, wo);
+    return eval_weights(uv, lookup(m_books->grid, wi, wo));
+}
+
+void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
+    if (queries.size() != out.size())
+        fail("eval_batch: {} queries but {} outputs", queries.size(), out.size());
+    MlvqWeights w;
+    Vec3 last_wi{NAN, NAN, NAN}, last_wo{NAN, NAN, NAN};
+    for (size_t i = 0; i < queries.size(); ++i) {
+        const Query& q = queries[i];
+        if (!(q.wi.x == last_wi.x && q.wi.y == last_wi.y && q.wi.z == last_wi.z &&
+              q.wo.x == last_wo.x && q.wo.y == last_wo.y && q.wo.z == last_wo.z)) {
+            w = lookup(m_books->grid, q.wi, q.wo);
+            last_wi = q.wi;
+            last_wo = q.wo;
+        }
+        out[i] = eval_weights(q.uv, w);
+    }
+}
+
+Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
     const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
     const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
     const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
@@ -501,6 +541,209 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
         if (std::string_view(e.what()).starts_with(what)) throw;
         fail("{}: {}", what, e.what());
     }
+}
+
+// ---- importance sampling and albedo -------------------------------------------------------------
+
+// The ≤ 16 components of a query's light function: M entries with weights (interpolation weight
+// × luminance scale) and masses (weight × the entry's integral, index units).
+struct MlvqMaterial::Mixture {
+    int count = 0;
+    uint32_t entry[16];
+    double weight[16], mass[16];
+    double total = 0;
+    double phi_v = 0;
+};
+
+void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
+    const Codebooks& b = *m_books;
+    const MlvqGrid& g = b.grid;
+    const MlvqCoordinates view = to_mlvq(Vec3{0, 0, 1}, wo);
+    const MlvqWeights w = lookup(g, view);
+    out.phi_v = view.phi_v;
+    const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
+    const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
+    const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
+    const float s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t, lx.t * ly.t};
+    const size_t stride = size_t(g.n_alpha) + 1;
+    out.count = 0;
+    out.total = 0;
+    for (int k = 0; k < 4; ++k) {
+        if (s[k] == 0) continue;
+        const IndexScale& e6 = m_index.p6[size_t(t[k])];
+        for (int p = 0; p < 2; ++p) {
+            const float wp = s[k] * w.phi_v.weight[p];
+            if (wp == 0) continue;
+            const IndexScale& e4 = b.p4[size_t(e6.index) * g.n_phi_v + w.phi_v.index[p]];
+            for (int q = 0; q < 2; ++q) {
+                const float wt = wp * w.theta_v.weight[q];
+                if (wt == 0) continue;
+                const IndexScale& e3 = b.p3[size_t(e4.index) * g.n_theta_v + w.theta_v.index[q]];
+                const double weight = double(wt) * e6.scale * e4.scale * e3.scale;
+                const double mass = weight * (*m_rows)[size_t(e3.index) * stride + g.n_alpha];
+                if (!(mass > 0)) continue;
+                out.entry[out.count] = e3.index;
+                out.weight[out.count] = weight;
+                out.mass[out.count] = mass;
+                out.total += mass;
+                ++out.count;
+            }
+        }
+    }
+}
+
+namespace {
+
+// Inverse CDF of a density that is linear between samples v[0 … n−1] (unit spacing), given the
+// target mass in [0, Σ trapezoids): the fractional sample index. Within a segment with end
+// values a, b the mass up to t ∈ [0, 1] is a t + (b − a) t² / 2.
+template <typename Value>
+double invert_linear(Value v, int n, double target) {
+    for (int i = 0; i + 1 < n; ++i) {
+        const double a = v(i), b = v(i + 1), segment = 0.5 * (a + b);
+        if (target < segment || i + 2 == n) {
+            const double r = std::clamp(target, 0.0, segment);
+            double x;
+            if (std::abs(b - a) < 1e-12 * std::max(a + b, 1e-300))
+                x = segment > 0 ? r / segment : 0.5;
+            else  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], in the stable form
+                x = 2 * r / (a + std::sqrt(std::max(0.0, a * a + 2 * (b - a) * r)));
+            return i + std::clamp(x, 0.0, 1.0);
+        }
+        target -= segment;
+    }
+    return 0;
+}
+
+// Uniform hemisphere: (ξ1, ξ2) → direction, pdf 1 / 2π.
+Vec3 uniform_hemisphere(double xi1, double xi2) {
+    const double z = xi1, r = std::sqrt(std::max(0.0, 1 - z * z)), phi = 2 * kPi * xi2;
+    return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+}  // namespace
+
+LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+    xi1 = std::clamp(xi1, 0.0, std::nextafter(1.0, 0.0));
+    xi2 = std::clamp(xi2, 0.0, std::nextafter(1.0, 0.0));
+    Mixture mix;
+    mixture(uv, wo, mix);
+    LightSample out;
+    if (mix.count == 0) {
+        out.wi = uniform_hemisphere(xi1, xi2);
+        out.pdf = 1 / (2 * kPi);
+    } else {
+        // The component, then ξ1 rescaled within its share.
+        double target = xi1 * mix.total;
+        int c = 0;
+        while (c + 1 < mix.count && target >= mix.mass[c]) target -= mix.mass[c++];
+        const double share = std::clamp(target / mix.mass[c], 0.0, 1.0);
+        const MlvqGrid& g = m_books->grid;
+        const size_t stride = size_t(g.n_alpha) + 1;
+        const float* rows = m_rows->data() + size_t(mix.entry[c]) * stride;
+        const float* f = m_merged->data() + size_t(mix.entry[c]) * size_t(g.n_alpha) * g.n_beta * 3;
+        const double x = invert_linear([rows](int i) { return double(rows[i]); }, g.n_alpha,
+                                       share * rows[g.n_alpha]);
+        const int i0 = std::min(int(x), g.n_alpha - 2);
+        const double tx = x - i0;
+        const auto column = [&](int j) {
+            return (1 - tx) * f[(size_t(i0) * g.n_beta + j) * 3] +
+                   tx * f[(size_t(i0 + 1) * g.n_beta + j) * 3];
+        };
+        double row_mass = 0;
+        for (int j = 0; j + 1 < g.n_beta; ++j) row_mass += 0.5 * (column(j) + column(j + 1));
+        const double y = invert_linear(column, g.n_beta, xi2 * row_mass);
+        const double alpha = -kPi / 2 + kPi * x / (g.n_alpha - 1);
+        const double u = -1 + 2 * y / (g.n_beta - 1);
+        out.wi = direction_from_onion_u(alpha, u, mix.phi_v);
+        out.wi.z = std::max(out.wi.z, 0.0);
+        out.pdf = pdf(uv, wo, out.wi);
+    }
+    out.value = eval(uv, out.wi, wo);
+    if (out.pdf > 0)
+        out.weight = {float(out.value.r / out.pdf), float(out.value.g / out.pdf),
+                      float(out.value.b / out.pdf)};
+    return out;
+}
+
+double MlvqMaterial::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
+    if (!(wi.z >= 0)) return 0;
+    Mixture mix;
+    mixture(uv, wo, mix);
+    if (mix.count == 0) return 1 / (2 * kPi);
+    const MlvqGrid& g = m_books->grid;
+    const MlvqWeights w = lookup(g, wi, wo);
+    // The mixture's luminance at wi, in the units of its masses.
+    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+    double value = 0;
+    for (int c = 0; c < mix.count; ++c) {
+        const float* f = m_merged->data() + size_t(mix.entry[c]) * n2 * 3;
+        double v = 0;
+        for (int a = 0; a < 2; ++a)
+            for (int q = 0; q < 2; ++q)
+                v += double(w.alpha.weight[a]) * w.beta.weight[q] *
+                     f[(size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3];
+        value += mix.weight[c] * v;
+    }
+    // Masses are in sample-index units: one unit is π/(nα − 1) · 2/(nβ − 1) of solid angle.
+    const double cell = kPi / (g.n_alpha - 1) * 2.0 / (g.n_beta - 1);
+    return std::max(0.0, value) / (mix.total * cell);
+}
+
+Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
+    const Codebooks& b = *m_books;
+    const MlvqGrid& g = b.grid;
+    const MlvqWeights view = lookup(g, to_mlvq(Vec3{0, 0, 1}, wo));
+    if (b.colour == ColourModel::kYCbCr) {
+        // Linear in (Y, Cb, Cr): integrate the planes, then convert.
+        double y = 0, c1 = 0, c2 = 0;
+        const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
+        const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
+        const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
+        const float s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t,
+                            lx.t * ly.t};
+        const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+        for (int k = 0; k < 4; ++k) {
+            if (s[k] == 0) continue;
+            const IndexScale& e6 = m_index.p6[size_t(t[k])];
+            for (int p = 0; p < 2; ++p)
+                for (int q = 0; q < 2; ++q) {
+                    const double wt = double(s[k]) * view.phi_v.weight[p] * view.theta_v.weight[q];
+                    if (wt == 0) continue;
+                    const IndexScale& e4 = b.p4[size_t(e6.index) * g.n_phi_v + view.phi_v.index[p]];
+                    const IndexScale& e3 =
+                        b.p3[size_t(e4.index) * g.n_theta_v + view.theta_v.index[q]];
+                    const float* f = m_merged->data() + size_t(e3.index) * n2 * 3;
+                    double sy = 0, s1 = 0, s2 = 0;
+                    for (int i = 0; i < g.n_alpha; ++i)
+                        for (int j = 0; j < g.n_beta; ++j) {
+                            const double lw = g.light_weight(i, j);
+                            const float* v = f + (size_t(i) * g.n_beta + j) * 3;
+                            sy += lw * v[0];
+                            s1 += lw * v[1];
+                            s2 += lw * v[2];
+                        }
+                    y += wt * e6.scale * e4.scale * e3.scale * sy;
+                    c1 += wt * s1;
+                    c2 += wt * s2;
+                }
+        }
+        const Rgb integral = from_planes(b.colour, float(y), float(c1), float(c2));
+        return {float(integral.r / kPi), float(integral.g / kPi), float(integral.b / kPi)};
+    }
+    // LogLuv: the conversion is not linear; sum the converted grid samples instead.
+    double r = 0, gg = 0, bb = 0;
+    for (int i = 0; i < g.n_alpha; ++i)
+        for (int j = 0; j < g.n_beta; ++j) {
+            const Vec3 wi =
+                direction_from_onion_u(g.alpha(i), g.sin_beta(j), to_mlvq(Vec3{0, 0, 1}, wo).phi_v);
+            const Rgb v = eval(uv, wi, wo);
+            const double lw = g.light_weight(i, j);
+            r += lw * v.r;
+            gg += lw * v.g;
+            bb += lw * v.b;
+        }
+    return {float(r / kPi), float(gg / kPi), float(bb / kPi)};
 }
 
 }  // namespace mlvq

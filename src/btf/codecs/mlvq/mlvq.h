@@ -71,6 +71,24 @@ class MlvqMaterial final : public Material {
     const Sampling& sampling() const override { return m_index.sampling; }
     Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
     Rgb eval_sample(int x, int y, int view, int light) const override;
+    /// eval() for many queries; consecutive queries with the same directions share one lookup.
+    void eval_batch(std::span<const Query> queries, std::span<Rgb> out) const override;
+
+    /// Importance sampling from the code-books (§5.2): the light function of a query is a
+    /// mixture of ≤ 16 decoded M entries (4 texels × 2 θv × 2 φv, with their interpolation
+    /// weights and scales), each bilinear in (α, u = sin β) — an equal-area parametrization, so
+    /// a density over (α, u) is a density per solid angle. A component is picked by its mass,
+    /// then α by the inverse CDF of the piecewise-linear marginal (the P2 row masses) and u by
+    /// that of the conditional (the P1 slices of the two neighbouring rows), both solved exactly
+    /// per segment. The pdf is the model's luminance over its integral: exactly proportional to
+    /// what eval() returns as Y. Continuous in ξ2, and in ξ1 within each mixture component.
+    /// A texel of zero luminance samples the hemisphere uniformly.
+    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
+    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
+    /// (1/π) ∫ value dωi from the decoded M entries' integrals: exact for the model with YCbCr
+    /// (linear in Y, Cb, Cr), a quadrature over the grid's light samples with LogLuv.
+    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+    bool native_sampling() const override { return true; }
 
     const Codebooks& codebooks() const { return *m_books; }
     const TexelIndex& texel_index() const { return m_index; }
@@ -78,12 +96,19 @@ class MlvqMaterial final : public Material {
     std::array<float, 3> planes(int64_t texel, const MlvqWeights& w) const;
 
   private:
+    Rgb eval_weights(const Uv& uv, const MlvqWeights& w) const;
+
     std::shared_ptr<const Codebooks> m_books;
     TexelIndex m_index;
     /// Per M entry its 2-D light function decoded: nα × nβ samples of (Y normalized, c₁, c₂),
     /// shared by every material of the code-books. Evaluation then follows P6 → P4 → P3 → M and
     /// reads the 2 × 2 (α, β) corners there instead of walking P2, P1, I2, I1 and C per corner.
     std::shared_ptr<const std::vector<float>> m_merged;
+    /// Per M entry: its luminance's row integrals over u (nα, index units) and total (1).
+    std::shared_ptr<const std::vector<float>> m_rows;
+
+    struct Mixture;
+    void mixture(const Uv& uv, const Vec3& wo, Mixture& out) const;
 };
 
 }  // namespace mlvq

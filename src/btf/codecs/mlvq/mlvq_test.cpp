@@ -6,8 +6,11 @@
 #include <memory>
 #include <vector>
 
+#include "btf/core/btf_lookup.h"
+#include "btf/core/light_sampler.h"
 #include "btf/io/function_source.h"
 #include "btf/synth/synth.h"
+#include "btf/testing/chi_square.h"
 #include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
@@ -93,6 +96,29 @@ TEST(Mlvq, TrainedTexelsReconstructWithinTheThreshold) {
     EXPECT_LT(books.size_p4(), size_t(source.num_texels()));
 }
 
+// The MSSIM measure (§4.4.2): a tighter percentile threshold keeps more code-vectors and decodes
+// closer to the resampled input.
+TEST(Mlvq, MssimMeasureTradesSizeForSimilarity) {
+    const BtfSource& source = leather();
+    const MlvqGrid grid = parse_options(small_grid()).encoder.grid;
+    const std::vector<float> f = resampled_planes(source, grid, ColourModel::kYCbCr);
+    const int64_t length = 3 * grid.samples();
+    size_t previous_p1 = 0;
+    double previous_error = INFINITY;
+    for (const char* threshold : {"0.2", "0.05", "0.01"}) {
+        const Options options =
+            parse_options(small_grid({{"measure", "mssim"}, {"threshold", threshold}}));
+        const auto [books, index] = encode(source, options);
+        double error = 0;
+        for (int64_t t = 0; t < source.num_texels(); ++t)
+            error += texel_mse(books, index.p6[size_t(t)], f.data() + t * length);
+        EXPECT_GE(books.size_p1(), previous_p1) << threshold;
+        EXPECT_LT(error, previous_error) << threshold;
+        previous_p1 = books.size_p1();
+        previous_error = error;
+    }
+}
+
 // Identical texels get the same P4 entry and scale.
 TEST(Mlvq, IdenticalTexelsShareCodeVectors) {
     const BtfSource& base = leather();
@@ -169,6 +195,16 @@ TEST(Mlvq, PackageRoundTripDecodesTheMaterial) {
     EXPECT_NEAR(at.r, exact.r, 1e-6);
     EXPECT_NEAR(at.g, exact.g, 1e-6);
     EXPECT_NEAR(at.b, exact.b, 1e-6);
+    // eval_batch (sharing the lookup between queries of equal directions) equals eval().
+    std::vector<Query> queries;
+    for (int k = 0; k < 40; ++k)
+        queries.push_back({{0.037 * k, 0.071 * k},
+                           Direction::from_degrees(5 + k / 8 * 15, 40.0 * (k / 8)).vector(),
+                           Direction::from_degrees(60 - k / 10 * 12, 100.0 + k / 10).vector()});
+    std::vector<Rgb> batch(queries.size());
+    m.eval_batch(queries, batch);
+    for (size_t k = 0; k < queries.size(); ++k)
+        EXPECT_EQ(batch[k], m.eval(queries[k].uv, queries[k].wi, queries[k].wo)) << k;
 }
 
 TEST(Mlvq, PrefixesOfThePackageOpen) {
@@ -242,6 +278,74 @@ TEST(Mlvq, SharedCodeBooksDecodeEachMaterial) {
     Package prefix = shared;
     prefix.sections.resize(2);
     EXPECT_EQ(open_all(prefix).size(), 1u);
+}
+
+// Importance sampling (§5.2): the directions follow the reported pdf (χ² test over equal-area
+// bins), the pdf integrates to 1 and is what sample() reports, for several (uv, ωo) including
+// a view between grid samples and a position between texels.
+TEST(MlvqSampling, FollowsItsPdfWhichIntegratesToOne) {
+    const auto glossy = test::cached(*synth::make("lacquered_wood", 8, test::ubo_subset(8, 12), 3));
+    const auto material = mlvq_codec().open(mlvq_codec().encode(*glossy, small_grid()));
+    ASSERT_TRUE(material->native_sampling());
+    const struct {
+        Uv uv;
+        Vec3 wo;
+    } cases[] = {{{0.31, 0.62}, Direction::from_degrees(0, 0).vector()},
+                 {{0.5625, 0.0625}, Direction::from_degrees(37, 65).vector()},
+                 {{0.9, 0.4}, Direction::from_degrees(71, 200).vector()}};
+    for (const auto& c : cases) {
+        test::ChiSquareOptions options;
+        options.samples = 100000;
+        const test::ChiSquareResult r = test::chi_square_hemisphere(
+            [&](double a, double b) { return material->sample(c.uv, c.wo, a, b).wi; },
+            [&](const Vec3& wi) { return material->pdf(c.uv, c.wo, wi); }, options);
+        EXPECT_TRUE(r.passed(1e-3)) << r.describe();
+        EXPECT_NEAR(r.pdf_integral, 1.0, 0.01);
+        for (const double xi : {0.05, 0.37, 0.81}) {
+            const LightSample ls = material->sample(c.uv, c.wo, xi, 1 - xi);
+            EXPECT_GT(ls.pdf, 0);
+            EXPECT_NEAR(ls.pdf, material->pdf(c.uv, c.wo, ls.wi), 1e-6 * ls.pdf);
+            const Rgb v = material->eval(c.uv, ls.wi, c.wo);
+            EXPECT_EQ(ls.value, v);
+            EXPECT_NEAR(ls.weight.g, v.g / ls.pdf, 1e-5 * std::abs(v.g / ls.pdf) + 1e-9);
+        }
+    }
+}
+
+// The pdf is the model's luminance over its integral: pdf(ωi) / Y(ωi) is the same for every ωi.
+TEST(MlvqSampling, PdfIsProportionalToTheLuminance) {
+    const auto material = mlvq_codec().open(mlvq_codec().encode(leather(), small_grid()));
+    const auto& m = dynamic_cast<const MlvqMaterial&>(*material);
+    const Uv uv{0.3, 0.7};
+    const Vec3 wo = Direction::from_degrees(28, 140).vector();
+    double ratio = 0;
+    for (const auto& [t, p] : {std::pair{10.0, 30.0}, {40.0, 200.0}, {65.0, 300.0}}) {
+        const Vec3 wi = Direction::from_degrees(t, p).vector();
+        const MlvqWeights w = lookup(m.codebooks().grid, wi, wo);
+        double y = 0;
+        const WrapLerp lx = wrap_lerp(uv.u, 16), ly = wrap_lerp(uv.v, 16);
+        const int64_t texel[4] = {ly.i0 * 16 + lx.i0, ly.i0 * 16 + lx.i1, ly.i1 * 16 + lx.i0,
+                                  ly.i1 * 16 + lx.i1};
+        const double s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t,
+                             lx.t * ly.t};
+        for (int k = 0; k < 4; ++k) y += s[k] * m.planes(texel[k], w)[0];
+        const double r = m.pdf(uv, wo, wi) / y;
+        if (ratio == 0) ratio = r;
+        EXPECT_NEAR(r, ratio, 1e-4 * ratio);
+    }
+}
+
+// Albedo from the code-books' integrals equals a fine quadrature of eval().
+TEST(MlvqSampling, AlbedoMatchesAQuadratureOfTheValues) {
+    const auto material = mlvq_codec().open(mlvq_codec().encode(leather(), small_grid()));
+    for (const auto& [uv, wo] : {std::pair{Uv{0.3, 0.7}, Direction::from_degrees(28, 140)},
+                                 {Uv{0.71, 0.2}, Direction::from_degrees(55, 10)}}) {
+        const Rgb a = material->albedo(uv, wo.vector());
+        const Rgb q = quadrature_albedo(*material, uv, wo.vector(), 128);
+        EXPECT_NEAR(a.r, q.r, 0.01 * q.r);
+        EXPECT_NEAR(a.g, q.g, 0.01 * q.g);
+        EXPECT_NEAR(a.b, q.b, 0.01 * q.b);
+    }
 }
 
 TEST(Mlvq, IsInTheRegistry) {
