@@ -6,8 +6,8 @@
 // same source measured in the same run.
 // Prints Markdown.
 //
-//   build/<dir>/mlvq_bench [--size 256] [--preset woven_fabric] [--threshold 1e-5]
-//                          [--level-factor 0.4] [--queries 1048576] [--repeat 3]
+//   build/<dir>/mlvq_bench [--size 256] [--preset woven_fabric] [--threshold 3e-5]
+//                          [--level-factor 1] [--queries 1048576] [--repeat 3]
 
 #include <fmt/format.h>
 
@@ -68,7 +68,7 @@ double sample_rmse(const BtfSource& source, const Material& m) {
 
 int main(int argc, char** argv) {
     int size = 256, repeat = 3;
-    std::string preset = "woven_fabric", threshold = "1e-5", level_factor = "0.4";
+    std::string preset = "woven_fabric", threshold = "3e-5", level_factor = "1";
     size_t count = size_t(1) << 20;
     CLI::App app{"The mlvq codec: encode time, sizes, evaluation rate (docs/benchmarks.md)"};
     app.add_option("--size", size, "texels per side")->capture_default_str();

@@ -6,7 +6,7 @@
 #   bash bench/mlvq_vs_fmf_lpca.sh [build-dir] [threshold] [synthetic size] [grid] [presets...]
 set -euo pipefail
 build=${1:-build/release}
-threshold=${2:-1e-5}
+threshold=${2:-3e-5}
 size=${3:-128}
 grid=${4:-3}
 shift $(( $# < 4 ? $# : 4 ))

@@ -18,7 +18,10 @@
 /// with measure mse the mean squared error of the reconstruction over the slice's values (all
 /// three planes where it has them); the user's ε_P4 shrinks by level_factor per level below
 /// (P3 f·ε, M f²·ε, P2 f³·ε, P1 f⁴·ε, §4.4.1), and the chromaticity levels have their own
-/// thresholds. With measure mssim every level takes the same threshold (§4.4.2).
+/// thresholds. A decomposed slice's error is at most the largest of its children's thresholds
+/// (its MSE is the mean of theirs), so f = 1 already keeps every texel within ε_P4; the paper's
+/// f = 0.4 makes the lower code-books far larger for little gain. With measure mssim every level
+/// takes the same threshold (§4.4.2).
 ///
 /// Training (§5.1.1) is the caller's: insert() a Halton-sampled 1 % of the texels, scale the
 /// thresholds by 2.5 and insert() 4 % more, then nearest() for the rest (frozen code-books).
@@ -36,11 +39,11 @@ struct EncoderOptions {
     MlvqGrid grid;
     ColourModel colour = ColourModel::kYCbCr;
     Measure measure = Measure::mse;
-    double threshold = 1e-5;     ///< ε_P4
-    double level_factor = 0.4;   ///< mse: threshold ratio between successive luminance levels
-    double threshold_i2 = 1e-5;  ///< chromaticity thresholds (mse; mssim uses `threshold`)
-    double threshold_i1 = 4e-6;
-    double threshold_c = 1.6e-6;
+    double threshold = 3e-5;     ///< ε_P4
+    double level_factor = 1;     ///< mse: threshold ratio between successive luminance levels
+    double threshold_i2 = 3e-5;  ///< chromaticity thresholds (mse; mssim uses `threshold`)
+    double threshold_i1 = 3e-5;
+    double threshold_c = 3e-5;
     SsimOptions ssim;
 };
 

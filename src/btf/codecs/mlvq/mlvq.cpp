@@ -9,8 +9,9 @@
 // gives each texel a P4 entry and a scale.
 //
 // Training (§5.1.1): a Halton-sampled 1 % of the texels is inserted at the user's threshold,
-// then 4 % more at 2.5 times it; the code-books are then frozen and every other texel takes its
-// most similar P4 code-vector. The source is read twice, in bands of rows.
+// then 4 % more at 2.5 times it; the code-books are then frozen and every texel (the trained
+// ones too, whose error can only shrink) takes its most similar P4 code-vector. The source is
+// read twice, in bands of rows.
 //
 // Storage (§4.5): code-book values and scales in 8 bits (P2 scales in 16 for HDR; scales on a
 // log scale, values linearly, each code-book over its own range), indices in ⌈log2 S⌉ bits.
@@ -23,10 +24,12 @@
 // then converted to RGB.
 //
 // Parameters (btf codecs mlvq):
-//   threshold=1e-5     ε_P4: mse — largest mean squared error of a texel's F_x in plane units
+//   threshold=3e-5     ε_P4: mse — largest mean squared error of a texel's F_x in plane units
 //                      (Y ≈ reflectance), mssim — largest 98th percentile of 1 − SSIM
-//   level-factor=0.4   mse: each luminance level below P4 takes this times the threshold above
-//   chroma-threshold=1e-5  mse: ε of I2; I1 and C take level-factor and its square times it
+//   level-factor=1     mse: each luminance level below P4 takes this times the threshold above
+//                      (the paper's constant is 0.4; 1 keeps the same bound with far smaller
+//                      code-books, see encoder.h)
+//   chroma-threshold=3e-5  mse: ε of I2; I1 and C take level-factor and its square times it
 //   measure=mse        mse or mssim (§4.4)
 //   colour=auto        auto (ycbcr for LDR, logluv for HDR), ycbcr, logluv
 //   n-alpha=11, n-beta=11, n-theta-v=7, n-phi-v=16    the grid (§6)
@@ -57,11 +60,12 @@ constexpr const char* kName = "mlvq";
 
 std::vector<ParamInfo> parameters() {
     return {
-        {"threshold", "1e-5",
+        {"threshold", "3e-5",
          "largest error of a texel's F_x at P4: mse in plane units (Y ~ reflectance), or the 98th "
          "percentile of 1 - SSIM"},
-        {"level-factor", "0.4", "mse: threshold ratio between successive luminance code-books"},
-        {"chroma-threshold", "1e-5", "mse threshold of I2 (I1, C: times level-factor, its square)"},
+        {"level-factor", "1",
+         "mse: threshold ratio between successive luminance code-books (the paper: 0.4)"},
+        {"chroma-threshold", "3e-5", "mse threshold of I2 (I1, C: times level-factor, its square)"},
         {"measure", "mse", "similarity measure: mse or mssim"},
         {"colour", "auto", "auto (ycbcr for LDR, logluv for HDR), ycbcr or logluv"},
         {"n-alpha", "11", "light slices (alpha)"},
@@ -260,10 +264,11 @@ std::pair<Codebooks, std::vector<TexelIndex>> encode_shared(
             parallel_for(0, int64_t(n) * width, [&](int64_t t) {
                 to_planes_in_place(eo.colour, band.data() + size_t(t) * length, n4);
             });
+            // Every texel, the trained ones included, takes its most similar P4 entry of the
+            // final code-books: at least as close as the entry its insertion produced, and
+            // identical texels get identical entries.
             const std::vector<IndexScale> found = encoder.nearest(band);
-            for (int64_t t = 0; t < int64_t(n) * width; ++t)
-                if (part.slot[size_t(int64_t(y0) * width + t)] < 0)
-                    part.p6[size_t(int64_t(y0) * width + t)] = found[size_t(t)];
+            std::copy(found.begin(), found.end(), part.p6.begin() + int64_t(y0) * width);
         }
     }
     progress.finish();
