@@ -38,8 +38,8 @@ step "btf info of the package"
 step "btf eval: the package's linear RGB value between measured directions"
 "$btf" eval "$out/$preset.btfpkg" --uv 0.5,0.5 --light 37,100 --view 22,10
 
-step "A compression report: three configurations measured on four views (normal to grazing)"
-"$btf" report "$out/$preset.h5" --views 0,7,37,57 --codecs fmf:C=8,32 pca-views:k=1,C=8 \
+step "A compression report: four configurations measured on four views (normal to grazing)"
+"$btf" report "$out/$preset.h5" --views 0,7,37,57 --codecs fmf:C=8,32 pca-views:k=1,C=8 mlvq \
   --btf-cielab-grid 1 --force -o "$out/report"
 echo "Open file://$(cd "$out/report" && pwd)/index.html in a browser (it needs no network)."
 

@@ -207,6 +207,41 @@ TEST(Mlvq, PackageRoundTripDecodesTheMaterial) {
         EXPECT_EQ(batch[k], m.eval(queries[k].uv, queries[k].wi, queries[k].wo)) << k;
 }
 
+// LogLuv (the HDR colour model): chromaticity u′v′ does not scale with intensity; the decoded
+// material is as close as with YCbCr, and an HDR package stores 16-bit P2 scales.
+TEST(Mlvq, LogLuvColourDecodesAsWellAsYCbCr) {
+    const BtfSource& source = leather();
+    const double ycbcr = rmse(
+        source, *mlvq_codec().open(mlvq_codec().encode(source, small_grid({{"colour", "ycbcr"}}))));
+    const Package package = mlvq_codec().encode(source, small_grid({{"colour", "logluv"}}));
+    EXPECT_EQ(package.header.at("colour"), "logluv");
+    EXPECT_EQ(package.header.at("quantization").at("P2").at("bits"), 8);  // an LDR source
+    const double logluv = rmse(source, *mlvq_codec().open(package));
+    EXPECT_LT(logluv, 1.1 * ycbcr);
+    for (const float v : {0.0f, 0.02f, 0.5f, 3.0f}) {
+        const Rgb c{v, 0.8f * v, 0.3f * v};
+        const auto p = to_planes(ColourModel::kLogLuv, c);
+        const Rgb back = from_planes(ColourModel::kLogLuv, p[0], p[1], p[2]);
+        EXPECT_NEAR(back.r, c.r, 1e-5 + 1e-5 * v);
+        EXPECT_NEAR(back.b, c.b, 1e-5 + 1e-5 * v);
+    }
+    // A tiny set of code-books written for an HDR source.
+    Codebooks books;
+    nlohmann::json header;
+    std::vector<PackageSection> sections;
+    books.grid = {3, 3, 2, 3};
+    books.p1 = {0.2f, 0.5f, 0.3f};
+    books.p2 = {{0, 0.2f}, {0, 0.5f}, {0, 0.3f}};
+    books.c = {{0.1f, 0.2f}};
+    books.i1 = {0, 0, 0};
+    books.i2 = {0, 0, 0};
+    books.m = {{0, 0}};
+    books.p3 = {{0, 0.5f}, {0, 0.5f}};
+    books.p4 = {{0, 0.3f}, {0, 0.3f}, {0, 0.4f}};
+    write_codebooks(books, true, header, sections);
+    EXPECT_EQ(header.at("quantization").at("P2").at("bits"), 16);
+}
+
 TEST(Mlvq, PrefixesOfThePackageOpen) {
     const BtfSource& source = leather();
     const Package full = mlvq_codec().encode(source, small_grid());
