@@ -558,14 +558,38 @@ struct MlvqMaterial::Mixture {
     double weight[16], mass[16];
     double total = 0;
     double phi_v = 0;
+    MlvqWeights view;  ///< the view's θv, φv weights (α, β unset)
+
+    // The mixture's luminance at light weights (α, β) of `w`, in the units of the masses.
+    double density(const std::vector<float>& merged, const MlvqGrid& g,
+                   const MlvqWeights& w) const {
+        const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+        double value = 0;
+        for (int c = 0; c < count; ++c) {
+            const float* f = merged.data() + size_t(entry[c]) * n2 * 3;
+            double v = 0;
+            for (int a = 0; a < 2; ++a)
+                for (int q = 0; q < 2; ++q)
+                    v += double(w.alpha.weight[a]) * w.beta.weight[q] *
+                         f[(size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3];
+            value += weight[c] * v;
+        }
+        return std::max(0.0, value);
+    }
+    // Masses are in sample-index units: one unit is π/(nα − 1) · 2/(nβ − 1) of solid angle.
+    static double cell(const MlvqGrid& g) { return kPi / (g.n_alpha - 1) * 2.0 / (g.n_beta - 1); }
 };
 
 void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
     const Codebooks& b = *m_books;
     const MlvqGrid& g = b.grid;
-    const MlvqCoordinates view = to_mlvq(Vec3{0, 0, 1}, wo);
-    const MlvqWeights w = lookup(g, view);
-    out.phi_v = view.phi_v;
+    // The view's weights through the fast lookup; its azimuth back from the φv weights (the
+    // inverse of the periodic axis, exact up to rounding).
+    const MlvqWeights w = lookup(g, Vec3{0, 0, 1}, wo);
+    out.view = w;
+    out.phi_v = g.n_phi_v == 1
+                    ? std::atan2(wo.y, wo.x)
+                    : (w.phi_v.index[0] + double(w.phi_v.weight[1])) * 2 * kPi / g.n_phi_v;
     const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
     const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
     const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
@@ -662,9 +686,15 @@ LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, doubl
         const double u = -1 + 2 * y / (g.n_beta - 1);
         out.wi = direction_from_onion_u(alpha, u, mix.phi_v);
         out.wi.z = std::max(out.wi.z, 0.0);
-        out.pdf = pdf(uv, wo, out.wi);
+        // The light weights of (x, y) directly: what lookup(wi, wo) returns up to rounding.
+        MlvqWeights w = mix.view;
+        const int j0 = std::min(int(y), g.n_beta - 2);
+        w.alpha = {{i0, i0 + 1}, {float(1 - tx), float(tx)}};
+        w.beta = {{j0, j0 + 1}, {float(1 - (y - j0)), float(y - j0)}};
+        out.pdf = mix.density(*m_merged, g, w) / (mix.total * Mixture::cell(g));
+        out.value = eval_weights(uv, w);
     }
-    out.value = eval(uv, out.wi, wo);
+    if (mix.count == 0) out.value = eval(uv, out.wi, wo);
     if (out.pdf > 0)
         out.weight = {float(out.value.r / out.pdf), float(out.value.g / out.pdf),
                       float(out.value.b / out.pdf)};
@@ -677,22 +707,7 @@ double MlvqMaterial::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
     mixture(uv, wo, mix);
     if (mix.count == 0) return 1 / (2 * kPi);
     const MlvqGrid& g = m_books->grid;
-    const MlvqWeights w = lookup(g, wi, wo);
-    // The mixture's luminance at wi, in the units of its masses.
-    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
-    double value = 0;
-    for (int c = 0; c < mix.count; ++c) {
-        const float* f = m_merged->data() + size_t(mix.entry[c]) * n2 * 3;
-        double v = 0;
-        for (int a = 0; a < 2; ++a)
-            for (int q = 0; q < 2; ++q)
-                v += double(w.alpha.weight[a]) * w.beta.weight[q] *
-                     f[(size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3];
-        value += mix.weight[c] * v;
-    }
-    // Masses are in sample-index units: one unit is π/(nα − 1) · 2/(nβ − 1) of solid angle.
-    const double cell = kPi / (g.n_alpha - 1) * 2.0 / (g.n_beta - 1);
-    return std::max(0.0, value) / (mix.total * cell);
+    return mix.density(*m_merged, g, lookup(g, wi, wo)) / (mix.total * Mixture::cell(g));
 }
 
 Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
