@@ -1,18 +1,23 @@
 #pragma once
 // Helpers shared by the codec benchmark programs (a header, so that the bench/*.cpp glob does not
-// turn it into a program of its own): an in-memory source, wall-clock timing and the process's
-// resident memory from /proc/self/status.
+// turn it into a program of its own): an in-memory source, wall-clock timing, random directions
+// and the process's resident memory from /proc/self/status.
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
+#include "btf/core/direction.h"
 #include "btf/io/source.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
@@ -30,6 +35,29 @@ class Stopwatch {
   private:
     std::chrono::steady_clock::time_point m_start;
 };
+
+/// The best wall time of `repeat` runs of fn: the machine is shared, so the fastest run is the
+/// one least disturbed.
+inline double best_of(int repeat, const std::function<void()>& fn) {
+    double best = INFINITY;
+    for (int r = 0; r < repeat; ++r) {
+        Stopwatch clock;
+        fn();
+        best = std::min(best, clock.seconds());
+    }
+    return best;
+}
+
+/// A double in [0, 1) from the 53 high bits of the generator (the same on every platform).
+inline double uniform01(std::mt19937_64& rng) {
+    return double(rng() >> 11) * 0x1p-53;
+}
+
+/// A direction uniformly distributed over the upper hemisphere (cos θ uniform).
+inline Vec3 random_direction(std::mt19937_64& rng) {
+    const double theta = std::acos(uniform01(rng)), phi = 2 * kPi * uniform01(rng);
+    return Direction{theta, phi}.vector();
+}
 
 /// A field of /proc/self/status in bytes ("VmRSS", "VmHWM"); 0 where it cannot be read.
 inline int64_t proc_status_bytes(const std::string& field) {

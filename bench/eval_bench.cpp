@@ -40,23 +40,6 @@ namespace {
 
 using namespace btf;
 
-Vec3 random_direction(std::mt19937_64& rng) {
-    std::uniform_real_distribution<double> uni(0, 1);
-    const double theta = std::acos(uni(rng)), phi = 2 * kPi * uni(rng);
-    return Direction{theta, phi}.vector();
-}
-
-// Best wall time of `repeat` runs of fn.
-double best_of(int repeat, const std::function<void()>& fn) {
-    double best = INFINITY;
-    for (int r = 0; r < repeat; ++r) {
-        bench::Stopwatch clock;
-        fn();
-        best = std::min(best, clock.seconds());
-    }
-    return best;
-}
-
 // fn(begin, end) on two threads over the halves of [0, n).
 void two_threads(size_t n, const std::function<void(size_t, size_t)>& fn) {
     std::thread other([&] { fn(n / 2, n); });
@@ -100,8 +83,8 @@ int main(int argc, char** argv) {
         std::vector<Query> random(count);
         for (Query& q : random) {
             q.uv = {uni(rng), uni(rng)};
-            q.wi = random_direction(rng);
-            q.wo = random_direction(rng);
+            q.wi = bench::random_direction(rng);
+            q.wo = bench::random_direction(rng);
         }
         constexpr int kImage = 512;
         std::vector<Query> image(size_t(kImage) * kImage);
@@ -116,13 +99,13 @@ int main(int argc, char** argv) {
         // The interpolator's lookups alone: two weights() per query, as eval() does.
         const AngularInterpolator views(ubo), lights(ubo);
         int64_t sink = 0;
-        const double t_weights = best_of(repeat, [&] {
+        const double t_weights = bench::best_of(repeat, [&] {
             for (const Query& q : random) {
                 const AngularWeights vw = views.weights(q.wo), lw = lights.weights(q.wi);
                 sink += vw.index[0] + lw.index[0];
             }
         });
-        const double t_eval = best_of(repeat, [&] {
+        const double t_eval = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < random.size(); ++i)
                 check[i] = m.eval(random[i].uv, random[i].wi, random[i].wo);
         });
@@ -130,18 +113,18 @@ int main(int argc, char** argv) {
         // again (as many evaluations as the full array), to separate memory latency from compute.
         constexpr size_t kWarm = 1024;
         const size_t warm_rounds = std::max<size_t>(1, random.size() / kWarm);
-        const double t_warm = best_of(repeat, [&] {
+        const double t_warm = bench::best_of(repeat, [&] {
             for (size_t r = 0; r < warm_rounds; ++r)
                 for (size_t i = 0; i < std::min(kWarm, random.size()); ++i)
                     out[i] = m.eval(random[i].uv, random[i].wi, random[i].wo);
         });
-        const double t_batch = best_of(
+        const double t_batch = bench::best_of(
             repeat, [&] { m.eval_batch(random, std::span<Rgb>(out.data(), random.size())); });
         float max_diff = 0;
         for (size_t i = 0; i < random.size(); ++i)
             max_diff = std::max({max_diff, std::abs(out[i].r - check[i].r),
                                  std::abs(out[i].g - check[i].g), std::abs(out[i].b - check[i].b)});
-        const double t_batch2 = best_of(repeat, [&] {
+        const double t_batch2 = bench::best_of(repeat, [&] {
             two_threads(random.size(), [&](size_t b, size_t e) {
                 m.eval_batch(std::span<const Query>(random.data() + b, e - b),
                              std::span<Rgb>(out.data() + b, e - b));
@@ -150,18 +133,18 @@ int main(int argc, char** argv) {
         const size_t reference_count = std::min<size_t>(random.size(), 1 << 18);
         double t_reference = INFINITY;
         if (const auto* fm = dynamic_cast<const factor::FactorMaterial*>(&m)) {
-            t_reference = best_of(repeat, [&] {
+            t_reference = bench::best_of(repeat, [&] {
                 for (size_t i = 0; i < reference_count; ++i)
                     out[i] = fm->eval_reference(random[i].uv, random[i].wi, random[i].wo);
             });
         }
-        const double t_image =
-            best_of(repeat, [&] { m.eval_batch(image, std::span<Rgb>(out.data(), image.size())); });
-        const double t_image_eval = best_of(repeat, [&] {
+        const double t_image = bench::best_of(
+            repeat, [&] { m.eval_batch(image, std::span<Rgb>(out.data(), image.size())); });
+        const double t_image_eval = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < image.size(); ++i)
                 out[i] = m.eval(image[i].uv, image[i].wi, image[i].wo);
         });
-        const double t_image2 = best_of(repeat, [&] {
+        const double t_image2 = bench::best_of(repeat, [&] {
             two_threads(image.size(), [&](size_t b, size_t e) {
                 m.eval_batch(std::span<const Query>(image.data() + b, e - b),
                              std::span<Rgb>(out.data() + b, e - b));

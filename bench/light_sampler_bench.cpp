@@ -39,30 +39,11 @@ namespace {
 
 using namespace btf;
 
-double uniform01(std::mt19937_64& rng) {
-    return double(rng() >> 11) * 0x1p-53;
-}
-
-Vec3 random_direction(std::mt19937_64& rng) {
-    const double theta = std::acos(uniform01(rng)), phi = 2 * kPi * uniform01(rng);
-    return Direction{theta, phi}.vector();
-}
-
 struct Draw {
     Uv uv;
     Vec3 wo;
     double xi1, xi2;
 };
-
-double best_of(int repeat, const std::function<void()>& fn) {
-    double best = INFINITY;
-    for (int r = 0; r < repeat; ++r) {
-        bench::Stopwatch clock;
-        fn();
-        best = std::min(best, clock.seconds());
-    }
-    return best;
-}
 
 }  // namespace
 
@@ -101,10 +82,10 @@ int main(int argc, char** argv) {
         std::mt19937_64 rng(7);
         std::vector<Draw> draws(count);
         for (Draw& d : draws) {
-            d.uv = {uniform01(rng), uniform01(rng)};
-            d.wo = random_direction(rng);
-            d.xi1 = uniform01(rng);
-            d.xi2 = uniform01(rng);
+            d.uv = {bench::uniform01(rng), bench::uniform01(rng)};
+            d.wo = bench::random_direction(rng);
+            d.xi1 = bench::uniform01(rng);
+            d.xi2 = bench::uniform01(rng);
         }
         std::vector<LightSample> out(count);
 
@@ -138,11 +119,11 @@ int main(int argc, char** argv) {
             t_cold = clock.seconds();
         }
         const int64_t cold_tables = sampler.tables_built();
-        const double t_warm = best_of(repeat, [&] {
+        const double t_warm = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < count; ++i)
                 out[i] = m->sample(draws[i].uv, draws[i].wo, draws[i].xi1, draws[i].xi2);
         });
-        const double t_warm2 = best_of(repeat, [&] {
+        const double t_warm2 = bench::best_of(repeat, [&] {
             auto half = [&](size_t b, size_t e) {
                 for (size_t i = b; i < e; ++i)
                     out[i] = m->sample(draws[i].uv, draws[i].wo, draws[i].xi1, draws[i].xi2);
@@ -164,7 +145,7 @@ int main(int argc, char** argv) {
             t_nearest_cold = clock.seconds();
         }
         const int64_t nearest_tables = nearest.tables_built();
-        const double t_nearest = best_of(repeat, [&] {
+        const double t_nearest = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < count; ++i)
                 out[i] = nearest.sample(draws[i].uv, draws[i].wo, draws[i].xi1, draws[i].xi2);
         });
@@ -172,15 +153,15 @@ int main(int argc, char** argv) {
         for (size_t i = 0; i < count; ++i)
             out[i] = m->sample(draws[i].uv, draws[i].wo, draws[i].xi1, draws[i].xi2);
         double sink = 0;
-        const double t_pdf = best_of(repeat, [&] {
+        const double t_pdf = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < count; ++i) sink += m->pdf(draws[i].uv, draws[i].wo, out[i].wi);
         });
-        const double t_eval = best_of(repeat, [&] {
+        const double t_eval = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < count; ++i)
                 sink += m->eval(draws[i].uv, out[i].wi, draws[i].wo).g;
         });
         const size_t albedo_count = std::min<size_t>(count, 4096);
-        const double t_albedo = best_of(repeat, [&] {
+        const double t_albedo = bench::best_of(repeat, [&] {
             for (size_t i = 0; i < albedo_count; ++i) sink += m->albedo(draws[i].uv, draws[i].wo).g;
         });
         std::fprintf(stderr, "(sink %g)\n", sink);

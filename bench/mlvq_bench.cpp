@@ -31,22 +31,6 @@ namespace {
 
 using namespace btf;
 
-Vec3 random_direction(std::mt19937_64& rng) {
-    std::uniform_real_distribution<double> uni(0, 1);
-    const double theta = std::acos(uni(rng)), phi = 2 * kPi * uni(rng);
-    return Direction{theta, phi}.vector();
-}
-
-double best_of(int repeat, const std::function<void()>& fn) {
-    double best = INFINITY;
-    for (int r = 0; r < repeat; ++r) {
-        bench::Stopwatch clock;
-        fn();
-        best = std::min(best, clock.seconds());
-    }
-    return best;
-}
-
 double sample_rmse(const BtfSource& source, const Material& m) {
     double sum = 0;
     int64_t n = 0;
@@ -130,12 +114,12 @@ int main(int argc, char** argv) {
         std::vector<Query> random(count);
         for (Query& q : random) {
             q.uv = {uni(rng), uni(rng)};
-            q.wi = random_direction(rng);
-            q.wo = random_direction(rng);
+            q.wi = bench::random_direction(rng);
+            q.wo = bench::random_direction(rng);
         }
         float sink = 0;
         auto rate = [&](const Material& m) {
-            const double t = best_of(repeat, [&] {
+            const double t = bench::best_of(repeat, [&] {
                 for (const Query& q : random) sink += m.eval(q.uv, q.wi, q.wo).g;
             });
             return double(random.size()) / t;
@@ -151,7 +135,7 @@ int main(int argc, char** argv) {
                 image[size_t(y) * kImage + x] = {{(x + 0.5) / kImage, (y + 0.5) / kImage}, wi, wo};
         std::vector<Rgb> out(image.size());
         auto image_rate = [&](const Material& m) {
-            const double t = best_of(repeat, [&] { m.eval_batch(image, out); });
+            const double t = bench::best_of(repeat, [&] { m.eval_batch(image, out); });
             return double(image.size()) / t;
         };
         const double i_mlvq = image_rate(*material), i_fmf = image_rate(*fmf);
@@ -167,7 +151,7 @@ int main(int argc, char** argv) {
         std::vector<std::array<double, 2>> xi(random.size());
         for (auto& x : xi) x = {uni(rng), uni(rng)};
         auto sample_rate = [&](const std::function<LightSample(const Query&, double, double)>& f) {
-            const double t = best_of(repeat, [&] {
+            const double t = bench::best_of(repeat, [&] {
                 for (size_t i = 0; i < random.size(); ++i)
                     sink += float(f(random[i], xi[i][0], xi[i][1]).pdf);
             });
