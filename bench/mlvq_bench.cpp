@@ -23,32 +23,12 @@
 
 #include "bench_common.h"
 #include "btf/codecs/fmf/fmf.h"
+#include "btf/codecs/material_source.h"
 #include "btf/codecs/mlvq/mlvq.h"
 #include "btf/core/light_sampler.h"
 #include "btf/synth/synth.h"
 
-namespace {
-
 using namespace btf;
-
-double sample_rmse(const BtfSource& source, const Material& m) {
-    double sum = 0;
-    int64_t n = 0;
-    for (int v = 0; v < source.num_views(); ++v)
-        for (int l = 0; l < source.num_lights(); ++l) {
-            const Image image = source.image(v, l);
-            for (int y = 0; y < source.height(); ++y)
-                for (int x = 0; x < source.width(); ++x) {
-                    const Rgb a = image.rgb(x, y), b = m.eval_sample(x, y, v, l);
-                    sum += double(a.r - b.r) * (a.r - b.r) + double(a.g - b.g) * (a.g - b.g) +
-                           double(a.b - b.b) * (a.b - b.b);
-                    n += 3;
-                }
-        }
-    return std::sqrt(sum / double(n));
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
     int size = 256, repeat = 3;

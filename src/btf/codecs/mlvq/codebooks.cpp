@@ -26,18 +26,16 @@ std::array<float, 3> to_planes(ColourModel model, const Rgb& rgb) {
         const YCbCr c = rgb_to_ycbcr(rgb);
         return {std::max(c.y, 0.0f), c.cb, c.cr};
     }
+    // LogLuv's chromaticity; its luminance stays linear here (the code-books are PDFs).
     const Xyz xyz = rgb_to_xyz(rgb);
-    const double d = xyz.x + 15 * xyz.y + 3 * xyz.z;
-    if (!(d > 1e-12)) return {0.0f, 0.1978f, 0.4683f};  // black: the D65 white point's u′v′
-    return {float(std::max(xyz.y, 0.0)), float(4 * xyz.x / d), float(9 * xyz.y / d)};
+    const LogLuv luv = xyz_to_logluv(xyz);
+    return {float(std::max(xyz.y, 0.0)), float(luv.u), float(luv.v)};
 }
 
 Rgb from_planes(ColourModel model, float y, float c1, float c2) {
     if (model == ColourModel::kYCbCr) return ycbcr_to_rgb({y, c1, c2});
-    if (!(c2 > 1e-6f) || !(y > 0)) return {0, 0, 0};
-    const double x = double(y) * 9 * c1 / (4 * c2);
-    const double z = double(y) * (12 - 3 * double(c1) - 20 * double(c2)) / (4 * c2);
-    return xyz_to_rgb({x, double(y), z});
+    if (!(y > 0)) return {0, 0, 0};
+    return logluv_to_rgb({std::log2(double(y)), double(c1), double(c2)});
 }
 
 namespace {

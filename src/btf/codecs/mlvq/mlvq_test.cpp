@@ -6,11 +6,13 @@
 #include <memory>
 #include <vector>
 
+#include "btf/codecs/material_source.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/core/light_sampler.h"
 #include "btf/io/function_source.h"
 #include "btf/synth/synth.h"
 #include "btf/testing/chi_square.h"
+#include "btf/testing/function_material.h"
 #include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
@@ -133,27 +135,8 @@ TEST(Mlvq, IdenticalTexelsShareCodeVectors) {
     EXPECT_LE(books.size_p4(), 16u);
 }
 
-// RMSE of a value function against the source over every sample.
-template <typename Value>
-double rmse_of(const BtfSource& source, Value value) {
-    double sum = 0;
-    int64_t n = 0;
-    for (int v = 0; v < source.num_views(); ++v)
-        for (int l = 0; l < source.num_lights(); ++l) {
-            const Image image = source.image(v, l);
-            for (int y = 0; y < source.height(); ++y)
-                for (int x = 0; x < source.width(); ++x) {
-                    const Rgb a = image.rgb(x, y), b = value(x, y, v, l);
-                    sum += double(a.r - b.r) * (a.r - b.r) + double(a.g - b.g) * (a.g - b.g) +
-                           double(a.b - b.b) * (a.b - b.b);
-                    n += 3;
-                }
-        }
-    return std::sqrt(sum / double(n));
-}
-
 double rmse(const BtfSource& source, const Material& m) {
-    return rmse_of(source, [&m](int x, int y, int v, int l) { return m.eval_sample(x, y, v, l); });
+    return sample_rmse(source, m);
 }
 
 TEST(Mlvq, PackageRoundTripDecodesTheMaterial) {
@@ -169,13 +152,14 @@ TEST(Mlvq, PackageRoundTripDecodesTheMaterial) {
     const MlvqGrid& grid = options.encoder.grid;
     const std::vector<float> f = resampled_planes(source, grid, ColourModel::kYCbCr);
     const int64_t n = grid.samples();
-    const double resampling = rmse_of(source, [&](int x, int y, int v, int l) {
-        const MlvqWeights w =
-            lookup(grid, source.sampling().lights.vector(l), source.sampling().views.vector(v));
-        const float* t = f.data() + (int64_t(y) * 16 + x) * 3 * n;
-        return from_planes(ColourModel::kYCbCr, reconstruct(grid, w, t),
-                           reconstruct(grid, w, t + n), reconstruct(grid, w, t + 2 * n));
-    });
+    const test::FunctionMaterial grid_function(
+        16, 16, source.sampling(), [&](const Uv& uv, const Vec3& wi, const Vec3& wo) {
+            const MlvqWeights w = lookup(grid, wi, wo);
+            const float* t = f.data() + (int64_t(uv.v * 16) * 16 + int64_t(uv.u * 16)) * 3 * n;
+            return from_planes(ColourModel::kYCbCr, reconstruct(grid, w, t),
+                               reconstruct(grid, w, t + n), reconstruct(grid, w, t + 2 * n));
+        });
+    const double resampling = rmse(source, grid_function);
     const double e = rmse(source, m);
     EXPECT_LT(e, 1.2 * resampling) << resampling;
     EXPECT_GT(e, 0.0);
