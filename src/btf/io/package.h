@@ -21,8 +21,10 @@
 #include <nlohmann/json.hpp>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "btf/util/error.h"
 #include "btf/util/progress.h"
 
 namespace btf {
@@ -85,5 +87,22 @@ Package decode_package(std::span<const uint8_t> bytes, const std::string& what);
 Package read_package(const std::filesystem::path& path);
 /// True if the file starts with the package magic.
 bool probe_package(const std::filesystem::path& path);
+
+/// Runs `read`, which interprets a package's header and sections for a codec, and gives its
+/// errors the one-line form every codec uses: a JSON error becomes "WHAT: bad header: …", any
+/// other btf::Error "WHAT: …" (unless it already starts with WHAT); cancellation passes through.
+template <typename Read>
+auto read_package_fields(const std::string& what, Read&& read) -> decltype(read()) {
+    try {
+        return read();
+    } catch (const nlohmann::json::exception& e) {
+        fail("{}: bad header: {}", what, e.what());
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        if (std::string_view(e.what()).starts_with(what)) throw;
+        fail("{}: {}", what, e.what());
+    }
+}
 
 }  // namespace btf

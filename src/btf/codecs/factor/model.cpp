@@ -482,7 +482,7 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
 
 Model from_package(const Package& package) {
     const std::string what = fmt::format("package ({})", package.codec());
-    try {
+    return read_package_fields(what, [&] {
         const auto& h = package.header;
         Model model;
         model.width = h.at("width").get<int>();
@@ -617,14 +617,7 @@ Model from_package(const Package& package) {
         }
         model.validate(what);
         return model;
-    } catch (const nlohmann::json::exception& e) {
-        fail("{}: bad header: {}", what, e.what());
-    } catch (const Cancelled&) {
-        throw;
-    } catch (const Error& e) {
-        if (std::string_view(e.what()).starts_with(what)) throw;
-        fail("{}: {}", what, e.what());
-    }
+    });
 }
 
 // ---- codec base ----------------------------------------------------------------------------

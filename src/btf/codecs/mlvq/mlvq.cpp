@@ -508,7 +508,7 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
     const std::string what = "package (mlvq)";
     if (package.codec() != kName)
         fail("package of codec '{}' opened as {}", package.codec(), kName);
-    try {
+    return read_package_fields(what, [&] {
         auto books = std::make_shared<const Codebooks>(read_codebooks(package));
         std::vector<std::unique_ptr<MlvqMaterial>> out;
         const nlohmann::json& list = package.header.at("materials");
@@ -538,14 +538,7 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
         }
         if (out.empty()) fail("section '{}' is missing", missing);
         return out;
-    } catch (const nlohmann::json::exception& e) {
-        fail("{}: bad header: {}", what, e.what());
-    } catch (const Cancelled&) {
-        throw;
-    } catch (const Error& e) {
-        if (std::string_view(e.what()).starts_with(what)) throw;
-        fail("{}: {}", what, e.what());
-    }
+    });
 }
 
 // ---- importance sampling and albedo -------------------------------------------------------------
