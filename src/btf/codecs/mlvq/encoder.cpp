@@ -90,57 +90,49 @@ std::vector<IndexScale> Encoder::nearest(std::span<const float> texels) const {
 // Each level: search; otherwise decompose, then add the reconstruction from the children (what
 // the decoder produces) as the new code-vector.
 
+// The luminance levels P4, P3, P2: `query` holds `parts` consecutive slices per plane (plane 0
+// luminance); unmatched, each slice goes to child(slice, plane stride) and the new entry keeps
+// (child index, the slice's share of the luminance sum), in `table` as the decoder reads it.
+
+template <typename Child>
+uint32_t Encoder::split(Codebook& book, const Codebook& children, std::vector<IndexScale>& table,
+                        std::span<const float> query, int parts, Child child) {
+    const Match found = book.find(query);
+    if (found) return found.index;
+    const size_t planes = book.options().layout.channels;
+    const size_t n = query.size() / planes, part = n / size_t(parts);
+    const double total = sum(query.data(), n);
+    std::vector<float> recon(query.size());
+    std::vector<IndexScale> entries(static_cast<size_t>(parts));
+    for (int k = 0; k < parts; ++k) {
+        const float* sub = query.data() + size_t(k) * part;
+        const uint32_t index = child(sub, n);
+        const float scale = total > 0 ? float(sum(sub, part) / total) : 0.0f;
+        entries[size_t(k)] = {index, scale};
+        const std::span<const float> v = children.vector(index);
+        for (size_t p = 0; p < planes; ++p)
+            for (size_t s = 0; s < part; ++s)
+                recon[p * n + size_t(k) * part + s] = (p == 0 ? scale : 1.0f) * v[p * part + s];
+    }
+    const Match added = book.add(recon);
+    table.insert(table.end(), entries.begin(), entries.end());
+    return added.index;
+}
+
 uint32_t Encoder::p4(const float* texel) {
     const MlvqGrid& g = m_options.grid;
-    const size_t n3 = size_t(g.n_theta_v) * g.n_alpha * g.n_beta, n4 = n3 * g.n_phi_v;
-    const Match found = m_p4.find(std::span<const float>(texel, 3 * n4));
-    if (found) return found.index;
-    const double total = sum(texel, n4);
-    std::vector<float> recon(3 * n4);
-    std::vector<IndexScale> entries(size_t(g.n_phi_v));
-    for (int m = 0; m < g.n_phi_v; ++m) {
-        const float* slice = texel + size_t(m) * n3;
-        const uint32_t child = p3(slice, n4);
-        const float scale = total > 0 ? float(sum(slice, n3) / total) : 0.0f;
-        entries[size_t(m)] = {child, scale};
-        const std::span<const float> v = m_p3.vector(child);
-        for (size_t s = 0; s < n3; ++s) {
-            recon[size_t(m) * n3 + s] = scale * v[s];
-            recon[n4 + size_t(m) * n3 + s] = v[n3 + s];
-            recon[2 * n4 + size_t(m) * n3 + s] = v[2 * n3 + s];
-        }
-    }
-    const Match added = m_p4.add(recon);
-    m_books.p4.insert(m_books.p4.end(), entries.begin(), entries.end());
-    return added.index;
+    return split(m_p4, m_p3, m_books.p4, std::span<const float>(texel, texel_length()), g.n_phi_v,
+                 [this](const float* sub, size_t stride) { return p3(sub, stride); });
 }
 
 uint32_t Encoder::p3(const float* slice, size_t stride) {
     const MlvqGrid& g = m_options.grid;
-    const size_t n2 = size_t(g.n_alpha) * g.n_beta, n3 = n2 * g.n_theta_v;
+    const size_t n3 = size_t(g.n_theta_v) * g.n_alpha * g.n_beta;
     std::vector<float> query(3 * n3);
     for (int p = 0; p < 3; ++p)
         std::copy(slice + p * stride, slice + p * stride + n3, query.begin() + p * n3);
-    const Match found = m_p3.find(query);
-    if (found) return found.index;
-    const double total = sum(query.data(), n3);
-    std::vector<float> recon(3 * n3);
-    std::vector<IndexScale> entries(size_t(g.n_theta_v));
-    for (int k = 0; k < g.n_theta_v; ++k) {
-        const float* sub = query.data() + size_t(k) * n2;
-        const uint32_t child = merge(sub, n3);
-        const float scale = total > 0 ? float(sum(sub, n2) / total) : 0.0f;
-        entries[size_t(k)] = {child, scale};
-        const std::span<const float> v = m_m.vector(child);
-        for (size_t s = 0; s < n2; ++s) {
-            recon[size_t(k) * n2 + s] = scale * v[s];
-            recon[n3 + size_t(k) * n2 + s] = v[n2 + s];
-            recon[2 * n3 + size_t(k) * n2 + s] = v[2 * n2 + s];
-        }
-    }
-    const Match added = m_p3.add(recon);
-    m_books.p3.insert(m_books.p3.end(), entries.begin(), entries.end());
-    return added.index;
+    return split(m_p3, m_m, m_books.p3, query, g.n_theta_v,
+                 [this](const float* sub, size_t s) { return merge(sub, s); });
 }
 
 uint32_t Encoder::merge(const float* slice, size_t stride) {
@@ -166,22 +158,8 @@ uint32_t Encoder::merge(const float* slice, size_t stride) {
 
 uint32_t Encoder::p2(const float* y) {
     const MlvqGrid& g = m_options.grid;
-    const size_t nb = size_t(g.n_beta), n2 = nb * g.n_alpha;
-    const Match found = m_p2.find(std::span<const float>(y, n2));
-    if (found) return found.index;
-    const double total = sum(y, n2);
-    std::vector<float> recon(n2);
-    std::vector<IndexScale> entries(size_t(g.n_alpha));
-    for (int i = 0; i < g.n_alpha; ++i) {
-        const uint32_t child = p1(y + size_t(i) * nb);
-        const float scale = total > 0 ? float(sum(y + size_t(i) * nb, nb) / total) : 0.0f;
-        entries[size_t(i)] = {child, scale};
-        const std::span<const float> v = m_p1.vector(child);
-        for (size_t j = 0; j < nb; ++j) recon[size_t(i) * nb + j] = scale * v[j];
-    }
-    const Match added = m_p2.add(recon);
-    m_books.p2.insert(m_books.p2.end(), entries.begin(), entries.end());
-    return added.index;
+    return split(m_p2, m_p1, m_books.p2, std::span<const float>(y, size_t(g.n_alpha) * g.n_beta),
+                 g.n_alpha, [this](const float* sub, size_t) { return p1(sub); });
 }
 
 uint32_t Encoder::p1(const float* y) {

@@ -70,6 +70,9 @@ class Encoder {
     size_t size_p4() const { return m_books.size_p4(); }
 
   private:
+    template <typename Child>
+    uint32_t split(Codebook& book, const Codebook& children, std::vector<IndexScale>& table,
+                   std::span<const float> query, int parts, Child child);
     uint32_t p4(const float* texel);                 // 3 × n4 raw values
     uint32_t p3(const float* slice, size_t stride);  // plane stride
     uint32_t merge(const float* slice, size_t stride);
