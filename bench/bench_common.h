@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "btf/core/direction.h"
+#include "btf/core/material.h"
 #include "btf/io/source.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
@@ -46,6 +47,16 @@ inline double best_of(int repeat, const std::function<void()>& fn) {
         best = std::min(best, clock.seconds());
     }
     return best;
+}
+
+/// The queries of a size × size image of a plane seen under one light and one view: texel-centre
+/// uv in row order, all with the same directions (coherent evaluation).
+inline std::vector<Query> image_queries(int size, const Vec3& wi, const Vec3& wo) {
+    std::vector<Query> image(size_t(size) * size);
+    for (int y = 0; y < size; ++y)
+        for (int x = 0; x < size; ++x)
+            image[size_t(y) * size + x] = {{(x + 0.5) / size, (y + 0.5) / size}, wi, wo};
+    return image;
 }
 
 /// A double in [0, 1) from the 53 high bits of the generator (the same on every platform).

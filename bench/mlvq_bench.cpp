@@ -107,12 +107,9 @@ int main(int argc, char** argv) {
         const double r_mlvq = rate(*material), r_fmf = rate(*fmf);
         // A 512² image of a plane under one light and one view: coherent queries.
         constexpr int kImage = 512;
-        std::vector<Query> image(size_t(kImage) * kImage);
         const Vec3 wi = Direction::from_degrees(37, 65).vector();
         const Vec3 wo = Direction::from_degrees(22, 190).vector();
-        for (int y = 0; y < kImage; ++y)
-            for (int x = 0; x < kImage; ++x)
-                image[size_t(y) * kImage + x] = {{(x + 0.5) / kImage, (y + 0.5) / kImage}, wi, wo};
+        const std::vector<Query> image = bench::image_queries(kImage, wi, wo);
         std::vector<Rgb> out(image.size());
         auto image_rate = [&](const Material& m) {
             const double t = bench::best_of(repeat, [&] { m.eval_batch(image, out); });
