@@ -298,6 +298,22 @@ std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& 
     return {std::move(books), std::move(indices[0])};
 }
 
+namespace {
+
+// The four texels of a bilinear lookup at uv (wrapping) and their weights.
+struct TexelCorners {
+    int64_t texel[4];
+    float weight[4];
+};
+TexelCorners texel_corners(const Uv& uv, int width, int height) {
+    const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
+    const int64_t r0 = int64_t(ly.i0) * width, r1 = int64_t(ly.i1) * width;
+    return {{r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1},
+            {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t, lx.t * ly.t}};
+}
+
+}  // namespace
+
 // ---- evaluation ---------------------------------------------------------------------------------
 
 MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index)
@@ -409,10 +425,9 @@ void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out
 }
 
 Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
-    const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
-    const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
-    const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
-    const float s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t, lx.t * ly.t};
+    const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
+    const int64_t* t = corners.texel;
+    const float* s = corners.weight;
     float y = 0, c1 = 0, c2 = 0;
     for (int k = 0; k < 4; ++k) {
         if (s[k] == 0) continue;
@@ -583,10 +598,9 @@ void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
     out.phi_v = g.n_phi_v == 1
                     ? std::atan2(wo.y, wo.x)
                     : (w.phi_v.index[0] + double(w.phi_v.weight[1])) * 2 * kPi / g.n_phi_v;
-    const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
-    const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
-    const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
-    const float s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t, lx.t * ly.t};
+    const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
+    const int64_t* t = corners.texel;
+    const float* s = corners.weight;
     const size_t stride = size_t(g.n_alpha) + 1;
     out.count = 0;
     out.total = 0;
@@ -710,11 +724,9 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
     if (b.colour == ColourModel::kYCbCr) {
         // Linear in (Y, Cb, Cr): integrate the planes, then convert.
         double y = 0, c1 = 0, c2 = 0;
-        const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
-        const int64_t r0 = int64_t(ly.i0) * m_index.width, r1 = int64_t(ly.i1) * m_index.width;
-        const int64_t t[4] = {r0 + lx.i0, r0 + lx.i1, r1 + lx.i0, r1 + lx.i1};
-        const float s[4] = {(1 - lx.t) * (1 - ly.t), lx.t * (1 - ly.t), (1 - lx.t) * ly.t,
-                            lx.t * ly.t};
+        const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
+        const int64_t* t = corners.texel;
+        const float* s = corners.weight;
         const size_t n2 = size_t(g.n_alpha) * g.n_beta;
         for (int k = 0; k < 4; ++k) {
             if (s[k] == 0) continue;
