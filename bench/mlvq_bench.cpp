@@ -4,10 +4,13 @@
 // directions) and for a 512² image under one light and view, and importance-sampling rates (the
 // native sampler against the generic tabulated one), against an fmf material (C = 32, rgb) of the
 // same source measured in the same run.
+// With --packages MLVQ FMF the encode is skipped and the rates are measured on two saved
+// packages (e.g. from `btf compress`), to iterate on the evaluator without re-encoding.
 // Prints Markdown.
 //
 //   build/<dir>/mlvq_bench [--size 256] [--preset woven_fabric] [--threshold 3e-5]
 //                          [--level-factor 1] [--queries 1048576] [--repeat 3]
+//   build/<dir>/mlvq_bench --packages mlvq.btfpkg fmf.btfpkg
 
 #include <fmt/format.h>
 
@@ -16,9 +19,13 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
+#include <memory>
 #include <random>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "bench_common.h"
@@ -30,10 +37,64 @@
 
 using namespace btf;
 
+namespace {
+
+// Encodes the synthetic material with mlvq and fmf (C = 32), prints the encode stages, the
+// code-book sizes, the compression ratios and the RMSE, and returns the two decoded materials.
+std::pair<std::unique_ptr<Material>, std::unique_ptr<Material>> encode_and_report(
+    const std::string& preset, int size, const std::string& threshold,
+    const std::string& level_factor) {
+    const DirectionSet& ubo = DirectionSet::ubo81();
+    const auto source = synth::make(preset, size, {ubo, ubo}, 1);
+    const Params params({{"threshold", threshold},
+                         {"chroma-threshold", threshold},
+                         {"level-factor", level_factor}});
+    const mlvq::Options options = mlvq::parse_options(params);
+    mlvq::EncodeReport report;
+    bench::Stopwatch clock;
+    auto [books, index] = mlvq::encode(*source, options, Progress::none(), &report);
+    const double encode_seconds = clock.seconds();
+    const int64_t texels = int64_t(size) * size;
+    Package package = mlvq::to_package(books, {index}, options);
+    const std::vector<uint8_t> bytes = encode_package(package);
+    auto material = open_material(decode_package(bytes, "mlvq_bench package"));
+
+    Package fmf_package = fmf_codec().encode(
+        *source, {{"components", "32"}, {"colour", "rgb"}, {"power-iterations", "0"}});
+    const std::vector<uint8_t> fmf_bytes = encode_package(fmf_package);
+    auto fmf = open_material(decode_package(fmf_bytes, "fmf package"));
+
+    std::printf("%s %d² × 81 × 81, threshold %s, level-factor %s\n\n", preset.c_str(), size,
+                threshold.c_str(), level_factor.c_str());
+    std::printf("| stage | seconds |\n|---|---|\n");
+    std::printf("| reading and resampling %lld training texels | %.1f |\n",
+                (long long)report.trained, report.seconds_reading);
+    std::printf("| training the code-books (steps 1, 2) | %.1f |\n", report.seconds_training);
+    std::printf("| reading, resampling and encoding the other %lld texels | %.1f |\n",
+                (long long)(report.texels - report.trained), report.seconds_frozen);
+    std::printf("| total | %.1f |\n\n", encode_seconds);
+
+    const double raw = double(texels) * 81 * 81 * 3;
+    const mlvq::StorageSizes sizes = mlvq::storage_sizes(books, texels, source->info().hdr);
+    std::printf("| code-book | entries | bytes |\n|---|---|---|\n");
+    for (const auto& [name, entries, b] : sizes.books)
+        std::printf("| %s | %lld | %lld |\n", name.c_str(), (long long)entries, (long long)b);
+    std::printf(
+        "\nC.R.1 1:%.0f, C.R.2 1:%.0f, C.R.3 1:%.0f, C.R.4 1:%.0f; package %zu bytes "
+        "(1:%.0f, zstd); RMSE %.4f (fmf C = 32: %zu bytes, RMSE %.4f)\n\n",
+        raw / double(sizes.bytes[0]), raw / double(sizes.bytes[1]), raw / double(sizes.bytes[2]),
+        raw / double(sizes.bytes[3]), bytes.size(), raw / double(bytes.size()),
+        sample_rmse(*source, *material), fmf_bytes.size(), sample_rmse(*source, *fmf));
+    return {std::move(material), std::move(fmf)};
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
     int size = 256, repeat = 3;
     std::string preset = "woven_fabric", threshold = "3e-5", level_factor = "1";
     size_t count = size_t(1) << 20;
+    std::vector<std::string> packages;
     CLI::App app{"The mlvq codec: encode time, sizes, evaluation rate (docs/benchmarks.md)"};
     app.add_option("--size", size, "texels per side")->capture_default_str();
     app.add_option("--preset", preset, "synthetic material")->capture_default_str();
@@ -44,51 +105,18 @@ int main(int argc, char** argv) {
     app.add_option("--repeat", repeat, "runs; the best counts")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    app.add_option("--packages", packages, "measure the rates only, on these mlvq and fmf packages")
+        ->expected(2);
     CLI11_PARSE(app, argc, argv);
     try {
-        const DirectionSet& ubo = DirectionSet::ubo81();
-        const auto source = synth::make(preset, size, {ubo, ubo}, 1);
-        const Params params({{"threshold", threshold},
-                             {"chroma-threshold", threshold},
-                             {"level-factor", level_factor}});
-        const mlvq::Options options = mlvq::parse_options(params);
-        mlvq::EncodeReport report;
-        bench::Stopwatch clock;
-        auto [books, index] = mlvq::encode(*source, options, Progress::none(), &report);
-        const double encode_seconds = clock.seconds();
-        const int64_t texels = int64_t(size) * size;
-        Package package = mlvq::to_package(books, {index}, options);
-        const std::vector<uint8_t> bytes = encode_package(package);
-        const auto material = open_material(decode_package(bytes, "mlvq_bench package"));
-
-        Package fmf_package = fmf_codec().encode(
-            *source, {{"components", "32"}, {"colour", "rgb"}, {"power-iterations", "0"}});
-        const std::vector<uint8_t> fmf_bytes = encode_package(fmf_package);
-        const auto fmf = open_material(decode_package(fmf_bytes, "fmf package"));
-
-        std::printf("%s %d² × 81 × 81, threshold %s, level-factor %s\n\n", preset.c_str(), size,
-                    threshold.c_str(), level_factor.c_str());
-        std::printf("| stage | seconds |\n|---|---|\n");
-        std::printf("| reading and resampling %lld training texels | %.1f |\n",
-                    (long long)report.trained, report.seconds_reading);
-        std::printf("| training the code-books (steps 1, 2) | %.1f |\n", report.seconds_training);
-        std::printf("| reading, resampling and encoding the other %lld texels | %.1f |\n",
-                    (long long)(report.texels - report.trained), report.seconds_frozen);
-        std::printf("| total | %.1f |\n\n", encode_seconds);
-
-        const double raw = double(texels) * 81 * 81 * 3;
-        const mlvq::StorageSizes sizes = mlvq::storage_sizes(books, texels, source->info().hdr);
-        std::printf("| code-book | entries | bytes |\n|---|---|---|\n");
-        for (const auto& [name, entries, b] : sizes.books)
-            std::printf("| %s | %lld | %lld |\n", name.c_str(), (long long)entries, (long long)b);
-        std::printf(
-            "\nC.R.1 1:%.0f, C.R.2 1:%.0f, C.R.3 1:%.0f, C.R.4 1:%.0f; package %zu bytes "
-            "(1:%.0f, zstd); RMSE %.4f (fmf C = 32: %zu bytes, RMSE %.4f)\n\n",
-            raw / double(sizes.bytes[0]), raw / double(sizes.bytes[1]),
-            raw / double(sizes.bytes[2]), raw / double(sizes.bytes[3]), bytes.size(),
-            raw / double(bytes.size()), sample_rmse(*source, *material), fmf_bytes.size(),
-            sample_rmse(*source, *fmf));
-
+        std::unique_ptr<Material> material, fmf;
+        if (packages.empty()) {
+            std::tie(material, fmf) = encode_and_report(preset, size, threshold, level_factor);
+        } else {
+            material = open_material(std::filesystem::path(packages[0]));
+            fmf = open_material(std::filesystem::path(packages[1]));
+            std::printf("%s and %s\n\n", packages[0].c_str(), packages[1].c_str());
+        }
         std::mt19937_64 rng(7);
         std::uniform_real_distribution<double> uni(0, 1);
         std::vector<Query> random(count);
@@ -105,6 +133,12 @@ int main(int argc, char** argv) {
             return double(random.size()) / t;
         };
         const double r_mlvq = rate(*material), r_fmf = rate(*fmf);
+        std::vector<Rgb> random_out(random.size());
+        auto batch_rate = [&](const Material& m) {
+            const double t = bench::best_of(repeat, [&] { m.eval_batch(random, random_out); });
+            return double(random.size()) / t;
+        };
+        const double b_mlvq = batch_rate(*material), b_fmf = batch_rate(*fmf);
         // A 512² image of a plane under one light and one view: coherent queries.
         constexpr int kImage = 512;
         const Vec3 wi = Direction::from_degrees(37, 65).vector();
@@ -119,6 +153,8 @@ int main(int argc, char** argv) {
         std::printf("| evaluation, one thread | mlvq | fmf C = 32 (same run) |\n|---|---|---|\n");
         std::printf("| random queries, eval() | %.2f M/s | %.2f M/s |\n", r_mlvq / 1e6,
                     r_fmf / 1e6);
+        std::printf("| random queries, one eval_batch() | %.2f M/s | %.2f M/s |\n", b_mlvq / 1e6,
+                    b_fmf / 1e6);
         std::printf("| 512² image, one light and view, eval_batch() | %.2f M/s | %.2f M/s |\n",
                     i_mlvq / 1e6, i_fmf / 1e6);
 

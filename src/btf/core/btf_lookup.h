@@ -22,7 +22,7 @@ struct WrapLerp {
 inline WrapLerp wrap_lerp(double c, int size) {
     double x = c * size - 0.5;
     if (!std::isfinite(x)) x = -0.5;
-    x -= size * std::floor(x / size);  // in [0, size) up to rounding
+    if (!(x >= 0 && x < size)) x -= size * std::floor(x / size);  // in [0, size) up to rounding
     if (!(x >= 0 && x < size)) x = 0;  // rounding for huge |c|, or exactly size
     const int i0 = static_cast<int>(x);
     const double t = x - i0;

@@ -90,10 +90,13 @@ LogLuv xyz_to_logluv(const Xyz& c) {
 }
 
 Xyz logluv_to_xyz(const LogLuv& c) {
-    const double y = std::exp2(c.log_y);
-    if (!(c.v > 0)) return {0, y, 0};
-    const double x = y * 9.0 * c.u / (4.0 * c.v);
-    const double z = y * (12.0 - 3.0 * c.u - 20.0 * c.v) / (4.0 * c.v);
+    return luminance_uv_to_xyz(std::exp2(c.log_y), c.u, c.v);
+}
+
+Xyz luminance_uv_to_xyz(double y, double u, double v) {
+    if (!(v > 0)) return {0, y, 0};
+    const double x = y * 9.0 * u / (4.0 * v);
+    const double z = y * (12.0 - 3.0 * u - 20.0 * v) / (4.0 * v);
     return {x, y, z};
 }
 

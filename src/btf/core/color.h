@@ -52,6 +52,8 @@ struct LogLuv {
 /// Luminance must be > 0; zero luminance maps to log2 of 1e-10 with the white point's u'v'.
 LogLuv xyz_to_logluv(const Xyz& xyz);
 Xyz logluv_to_xyz(const LogLuv& luv);
+/// XYZ of linear luminance y and chromaticity (u', v') (LogLuv without the log: y ≥ 0).
+Xyz luminance_uv_to_xyz(double y, double u, double v);
 inline LogLuv rgb_to_logluv(const Rgb& rgb) {
     return xyz_to_logluv(rgb_to_xyz(rgb));
 }

@@ -35,7 +35,7 @@ std::array<float, 3> to_planes(ColourModel model, const Rgb& rgb) {
 Rgb from_planes(ColourModel model, float y, float c1, float c2) {
     if (model == ColourModel::kYCbCr) return ycbcr_to_rgb({y, c1, c2});
     if (!(y > 0)) return {0, 0, 0};
-    return logluv_to_rgb({std::log2(double(y)), double(c1), double(c2)});
+    return xyz_to_rgb(luminance_uv_to_xyz(y, c1, c2));
 }
 
 namespace {

@@ -300,11 +300,6 @@ std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& 
 
 namespace {
 
-// The four texels of a bilinear lookup at uv (wrapping) and their weights.
-struct TexelCorners {
-    int64_t texel[4];
-    float weight[4];
-};
 TexelCorners texel_corners(const Uv& uv, int width, int height) {
     const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
     const int64_t r0 = int64_t(ly.i0) * width, r1 = int64_t(ly.i1) * width;
@@ -316,8 +311,9 @@ TexelCorners texel_corners(const Uv& uv, int width, int height) {
 
 // ---- evaluation ---------------------------------------------------------------------------------
 
-MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index)
-    : m_books(std::move(books)), m_index(std::move(index)) {
+MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index,
+                           std::shared_ptr<const DecodedBooks> decoded)
+    : m_books(std::move(books)), m_index(std::move(index)), m_decoded(std::move(decoded)) {
     check(m_books != nullptr, "mlvq material without code-books");
     check(int64_t(m_index.p6.size()) == int64_t(m_index.width) * m_index.height,
           "mlvq material: {} P6 entries for {}×{} texels", m_index.p6.size(), m_index.width,
@@ -325,118 +321,133 @@ MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex in
     for (const IndexScale& e : m_index.p6)
         check(e.index < m_books->size_p4(), "mlvq material: P6 points to P4 {} of {}", e.index,
               m_books->size_p4());
-    const Codebooks& b = *m_books;
-    const MlvqGrid& g = b.grid;
-    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
-    auto merged = std::make_shared<std::vector<float>>(b.size_m() * n2 * 3);
-    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
-        const std::array<uint32_t, 2>& merge = b.m[size_t(e)];
-        float* out = merged->data() + size_t(e) * n2 * 3;
-        for (int i = 0; i < g.n_alpha; ++i) {
-            const IndexScale& e2 = b.p2[size_t(merge[0]) * g.n_alpha + i];
-            const float* slice = b.p1.data() + size_t(e2.index) * g.n_beta;
-            const uint32_t* chroma =
-                b.i1.data() + size_t(b.i2[size_t(merge[1]) * g.n_alpha + i]) * g.n_beta;
-            for (int j = 0; j < g.n_beta; ++j) {
-                float* o = out + (size_t(i) * g.n_beta + j) * 3;
-                o[0] = e2.scale * slice[j];
-                o[1] = b.c[chroma[j]][0];
-                o[2] = b.c[chroma[j]][1];
-            }
+    if (!m_decoded) m_decoded = std::make_shared<const DecodedBooks>(*m_books);
+    check(m_decoded->size_m() == m_books->size_m(),
+          "mlvq material: decoded code-books of {} M entries for code-books of {}",
+          m_decoded->size_m(), m_books->size_m());
+}
+
+// One query's ≤ 16 light functions: for each of 4 texels × 2 φv × 2 θv with a non-zero weight,
+// the M entry's samples, its luminance scale (weight · c_P6 · c_P4 · c_P3) and its chromaticity
+// weight, and the offsets and weights of the 2 × 2 (α, β) corners within an entry.
+struct MlvqMaterial::Gathered {
+    int count = 0;
+    const DecodedBooks::Sample* entry[16];
+    float y_scale[16], c_weight[16];
+    DecodedBooks::Corners corners;
+
+    // Hints the cache lines the corners of entry c lie on (the first and the last sample).
+    void prefetch(int c) const {
+        __builtin_prefetch(entry[c] + corners.off[0]);
+        __builtin_prefetch(entry[c] + corners.off[1] + 1);
+    }
+};
+
+void MlvqMaterial::gather(const TexelCorners& corners, const MlvqWeights& w, Gathered& out) const {
+    // Always all 16 (texel, φv, θv) corners, without branches on zero weights (a corner of
+    // weight 0 adds 0; its entries exist all the same).
+    const DecodedBooks& d = *m_decoded;
+    const int n_theta = d.grid().n_theta_v;
+    int offset[4];
+    float weight[4];
+    for (int p = 0; p < 2; ++p)
+        for (int t = 0; t < 2; ++t) {
+            offset[p * 2 + t] = w.phi_v.index[p] * n_theta + w.theta_v.index[t];
+            weight[p * 2 + t] = w.phi_v.weight[p] * w.theta_v.weight[t];
         }
-    });
-    // Row integrals over u of each entry's luminance (trapezoid in sample-index units) and
-    // their total over α: what importance sampling picks rows and components with.
-    const size_t stride = size_t(g.n_alpha) + 1;
-    auto rows = std::make_shared<std::vector<float>>(b.size_m() * stride);
-    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
-        const float* f = merged->data() + size_t(e) * n2 * 3;
-        float* r = rows->data() + size_t(e) * stride;
-        double total = 0;
-        for (int i = 0; i < g.n_alpha; ++i) {
-            double sum = 0;
-            for (int j = 0; j < g.n_beta; ++j) {
-                const double y = f[(size_t(i) * g.n_beta + j) * 3];
-                sum += (j == 0 || j == g.n_beta - 1) ? 0.5 * y : y;
-            }
-            r[i] = float(sum);
-            total += (i == 0 || i == g.n_alpha - 1) ? 0.5 * sum : sum;
+    for (int k = 0; k < 4; ++k) {
+        const IndexScale& e6 = m_index.p6[size_t(corners.texel[k])];
+        const IndexScale* views = d.views(e6.index);
+        for (int j = 0; j < 4; ++j) {
+            const IndexScale& v = views[offset[j]];
+            const float wt = corners.weight[k] * weight[j];
+            out.entry[k * 4 + j] = d.entry(v.index);
+            out.y_scale[k * 4 + j] = wt * e6.scale * v.scale;
+            out.c_weight[k * 4 + j] = wt;
         }
-        r[g.n_alpha] = float(total);
-    });
-    m_merged = std::move(merged);
-    m_rows = std::move(rows);
+    }
+    out.count = 16;
+    out.corners = DecodedBooks::Corners(d.grid(), w);
+}
+
+// Prefetches what gather() will read of P4 ∘ P3 for the texels of uv (their P6 entries must be
+// in cache or on their way: the pipeline of eval_batch prefetched them one stage earlier).
+void MlvqMaterial::prefetch_views(const TexelCorners& corners, const MlvqWeights& w) const {
+    const MlvqGrid& g = m_decoded->grid();
+    for (int k = 0; k < 4; ++k) {
+        const IndexScale* v = m_decoded->views(m_index.p6[size_t(corners.texel[k])].index);
+        for (int p = 0; p < 2; ++p)
+            __builtin_prefetch(v + w.phi_v.index[p] * g.n_theta_v + w.theta_v.index[0]);
+    }
+}
+
+std::array<float, 3> MlvqMaterial::combine(const Gathered& g) const {
+    return m_decoded->blend(g.entry, g.y_scale, g.c_weight, g.count, g.corners);
 }
 
 std::array<float, 3> MlvqMaterial::planes(int64_t texel, const MlvqWeights& w) const {
-    const Codebooks& b = *m_books;
-    const MlvqGrid& g = b.grid;
-    const size_t n2 = size_t(g.n_alpha) * g.n_beta;
-    const IndexScale& e6 = m_index.p6[size_t(texel)];
-    // The 2 × 2 (α, β) corners as offsets into an M entry's decoded samples, and their weights.
-    size_t corner[4];
-    float weight[4];
-    for (int a = 0; a < 2; ++a)
-        for (int q = 0; q < 2; ++q) {
-            corner[a * 2 + q] = (size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3;
-            weight[a * 2 + q] = w.alpha.weight[a] * w.beta.weight[q];
-        }
-    float y = 0, c1 = 0, c2 = 0;
-    for (int p = 0; p < 2; ++p) {
-        const float wp = w.phi_v.weight[p];
-        if (wp == 0) continue;
-        const IndexScale& e4 = b.p4[size_t(e6.index) * g.n_phi_v + w.phi_v.index[p]];
-        for (int t = 0; t < 2; ++t) {
-            const float wt = wp * w.theta_v.weight[t];
-            if (wt == 0) continue;
-            const IndexScale& e3 = b.p3[size_t(e4.index) * g.n_theta_v + w.theta_v.index[t]];
-            const float* m = m_merged->data() + size_t(e3.index) * n2 * 3;
-            const float scale = wt * e6.scale * e4.scale * e3.scale;
-            for (int k = 0; k < 4; ++k) {
-                const float* v = m + corner[k];
-                y += scale * weight[k] * v[0];
-                c1 += wt * weight[k] * v[1];
-                c2 += wt * weight[k] * v[2];
-            }
-        }
-    }
-    return {y, c1, c2};
+    Gathered g;
+    gather({{texel, texel, texel, texel}, {1, 0, 0, 0}}, w, g);
+    return combine(g);
 }
 
 Rgb MlvqMaterial::eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const {
     return eval_weights(uv, lookup(m_books->grid, wi, wo));
 }
 
+Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
+    Gathered g;
+    gather(texel_corners(uv, m_index.width, m_index.height), w, g);
+    const std::array<float, 3> p = combine(g);
+    return from_planes(m_books->colour, p[0], p[1], p[2]);
+}
+
 void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
     if (queries.size() != out.size())
         fail("eval_batch: {} queries but {} outputs", queries.size(), out.size());
-    MlvqWeights w;
-    Vec3 last_wi{NAN, NAN, NAN}, last_wo{NAN, NAN, NAN};
-    for (size_t i = 0; i < queries.size(); ++i) {
-        const Query& q = queries[i];
-        if (!(q.wi.x == last_wi.x && q.wi.y == last_wi.y && q.wi.z == last_wi.z &&
-              q.wo.x == last_wo.x && q.wo.y == last_wo.y && q.wo.z == last_wo.z)) {
-            w = lookup(m_books->grid, q.wi, q.wo);
-            last_wi = q.wi;
-            last_wo = q.wo;
+    // Random queries miss the cache at every level of P6 → P4 ∘ P3 → M; a group of queries goes
+    // through the levels together, prefetching each level for the whole group before reading it,
+    // so that the misses of a group overlap instead of following one another.
+    constexpr size_t kGroup = 16;
+    MlvqWeights w[kGroup], looked_up[kGroup];
+    TexelCorners corners[kGroup];
+    Gathered g[kGroup];
+    Vec3 wi[kGroup], wo[kGroup];
+    int slot[kGroup];
+    MlvqWeights carried;  // the last query's weights, for a run that goes on into the next group
+    auto same = [](const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; };
+    for (size_t begin = 0; begin < queries.size(); begin += kGroup) {
+        const size_t n = std::min(kGroup, queries.size() - begin);
+        const Query* q = queries.data() + begin;
+        // Directions: one lookup per run of equal (ωi, ωo), four runs at a time.
+        size_t runs = 0;
+        for (size_t i = 0; i < n; ++i) {
+            const Query* previous = begin + i > 0 ? q + i - 1 : nullptr;
+            if (!previous || !same(q[i].wi, previous->wi) || !same(q[i].wo, previous->wo)) {
+                wi[runs] = q[i].wi;
+                wo[runs] = q[i].wo;
+                ++runs;
+            }
+            slot[i] = int(runs) - 1;  // −1: the run goes on from the previous group
         }
-        out[i] = eval_weights(q.uv, w);
+        lookup(m_books->grid, wi, wo, runs, looked_up);
+        for (size_t i = 0; i < n; ++i) {
+            w[i] = slot[i] >= 0 ? looked_up[slot[i]] : carried;
+            corners[i] = texel_corners(q[i].uv, m_index.width, m_index.height);
+            for (int k = 0; k < 4; ++k)
+                __builtin_prefetch(&m_index.p6[size_t(corners[i].texel[k])]);
+        }
+        carried = w[n - 1];
+        for (size_t i = 0; i < n; ++i) prefetch_views(corners[i], w[i]);
+        for (size_t i = 0; i < n; ++i) {
+            gather(corners[i], w[i], g[i]);
+            for (int c = 0; c < g[i].count; ++c) g[i].prefetch(c);
+        }
+        for (size_t i = 0; i < n; ++i) {
+            const std::array<float, 3> p = combine(g[i]);
+            out[begin + i] = from_planes(m_books->colour, p[0], p[1], p[2]);
+        }
     }
-}
-
-Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
-    const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
-    const int64_t* t = corners.texel;
-    const float* s = corners.weight;
-    float y = 0, c1 = 0, c2 = 0;
-    for (int k = 0; k < 4; ++k) {
-        if (s[k] == 0) continue;
-        const std::array<float, 3> p = planes(t[k], w);
-        y += s[k] * p[0];
-        c1 += s[k] * p[1];
-        c2 += s[k] * p[2];
-    }
-    return from_planes(m_books->colour, y, c1, c2);
 }
 
 Rgb MlvqMaterial::eval_sample(int x, int y, int view, int light) const {
@@ -525,6 +536,7 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
         fail("package of codec '{}' opened as {}", package.codec(), kName);
     return read_package_fields(what, [&] {
         auto books = std::make_shared<const Codebooks>(read_codebooks(package));
+        std::shared_ptr<const DecodedBooks> decoded;
         std::vector<std::unique_ptr<MlvqMaterial>> out;
         const nlohmann::json& list = package.header.at("materials");
         if (!list.is_array() || list.empty()) fail("no materials");
@@ -549,7 +561,8 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
             }
             index.p6 =
                 read_texel_index(package, m, prefix, index.width, index.height, books->size_p4());
-            out.push_back(std::make_unique<MlvqMaterial>(books, std::move(index)));
+            if (!decoded) decoded = std::make_shared<const DecodedBooks>(*books);
+            out.push_back(std::make_unique<MlvqMaterial>(books, std::move(index), decoded));
         }
         if (out.empty()) fail("section '{}' is missing", missing);
         return out;
@@ -569,17 +582,16 @@ struct MlvqMaterial::Mixture {
     MlvqWeights view;  ///< the view's θv, φv weights (α, β unset)
 
     // The mixture's luminance at light weights (α, β) of `w`, in the units of the masses.
-    double density(const std::vector<float>& merged, const MlvqGrid& g,
-                   const MlvqWeights& w) const {
-        const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+    double density(const DecodedBooks& d, const MlvqWeights& w) const {
+        const int n_beta = d.grid().n_beta;
         double value = 0;
         for (int c = 0; c < count; ++c) {
-            const float* f = merged.data() + size_t(entry[c]) * n2 * 3;
+            const DecodedBooks::Sample* f = d.entry(entry[c]);
             double v = 0;
             for (int a = 0; a < 2; ++a)
                 for (int q = 0; q < 2; ++q)
                     v += double(w.alpha.weight[a]) * w.beta.weight[q] *
-                         f[(size_t(w.alpha.index[a]) * g.n_beta + w.beta.index[q]) * 3];
+                         DecodedBooks::luminance(f[w.alpha.index[a] * n_beta + w.beta.index[q]]);
             value += weight[c] * v;
         }
         return std::max(0.0, value);
@@ -601,7 +613,7 @@ void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
     const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
     const int64_t* t = corners.texel;
     const float* s = corners.weight;
-    const size_t stride = size_t(g.n_alpha) + 1;
+    const DecodedBooks& d = *m_decoded;
     out.count = 0;
     out.total = 0;
     for (int k = 0; k < 4; ++k) {
@@ -610,15 +622,14 @@ void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
         for (int p = 0; p < 2; ++p) {
             const float wp = s[k] * w.phi_v.weight[p];
             if (wp == 0) continue;
-            const IndexScale& e4 = b.p4[size_t(e6.index) * g.n_phi_v + w.phi_v.index[p]];
             for (int q = 0; q < 2; ++q) {
                 const float wt = wp * w.theta_v.weight[q];
                 if (wt == 0) continue;
-                const IndexScale& e3 = b.p3[size_t(e4.index) * g.n_theta_v + w.theta_v.index[q]];
-                const double weight = double(wt) * e6.scale * e4.scale * e3.scale;
-                const double mass = weight * (*m_rows)[size_t(e3.index) * stride + g.n_alpha];
+                const IndexScale& v = d.view(e6.index, w.phi_v.index[p], w.theta_v.index[q]);
+                const double weight = double(wt) * e6.scale * v.scale;
+                const double mass = weight * d.rows(v.index)[g.n_alpha];
                 if (!(mass > 0)) continue;
-                out.entry[out.count] = e3.index;
+                out.entry[out.count] = v.index;
                 out.weight[out.count] = weight;
                 out.mass[out.count] = mass;
                 out.total += mass;
@@ -675,16 +686,15 @@ LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, doubl
         while (c + 1 < mix.count && target >= mix.mass[c]) target -= mix.mass[c++];
         const double share = std::clamp(target / mix.mass[c], 0.0, 1.0);
         const MlvqGrid& g = m_books->grid;
-        const size_t stride = size_t(g.n_alpha) + 1;
-        const float* rows = m_rows->data() + size_t(mix.entry[c]) * stride;
-        const float* f = m_merged->data() + size_t(mix.entry[c]) * size_t(g.n_alpha) * g.n_beta * 3;
+        const float* rows = m_decoded->rows(mix.entry[c]);
+        const DecodedBooks::Sample* f = m_decoded->entry(mix.entry[c]);
         const double x = invert_linear([rows](int i) { return double(rows[i]); }, g.n_alpha,
                                        share * rows[g.n_alpha]);
         const int i0 = std::min(int(x), g.n_alpha - 2);
         const double tx = x - i0;
         const auto column = [&](int j) {
-            return (1 - tx) * f[(size_t(i0) * g.n_beta + j) * 3] +
-                   tx * f[(size_t(i0 + 1) * g.n_beta + j) * 3];
+            return (1 - tx) * DecodedBooks::luminance(f[i0 * g.n_beta + j]) +
+                   tx * DecodedBooks::luminance(f[(i0 + 1) * g.n_beta + j]);
         };
         double row_mass = 0;
         for (int j = 0; j + 1 < g.n_beta; ++j) row_mass += 0.5 * (column(j) + column(j + 1));
@@ -698,7 +708,7 @@ LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, doubl
         const int j0 = std::min(int(y), g.n_beta - 2);
         w.alpha = {{i0, i0 + 1}, {float(1 - tx), float(tx)}};
         w.beta = {{j0, j0 + 1}, {float(1 - (y - j0)), float(y - j0)}};
-        out.pdf = mix.density(*m_merged, g, w) / (mix.total * Mixture::cell(g));
+        out.pdf = mix.density(*m_decoded, w) / (mix.total * Mixture::cell(g));
         out.value = eval_weights(uv, w);
     }
     if (mix.count == 0) out.value = eval(uv, out.wi, wo);
@@ -714,7 +724,7 @@ double MlvqMaterial::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
     mixture(uv, wo, mix);
     if (mix.count == 0) return 1 / (2 * kPi);
     const MlvqGrid& g = m_books->grid;
-    return mix.density(*m_merged, g, lookup(g, wi, wo)) / (mix.total * Mixture::cell(g));
+    return mix.density(*m_decoded, lookup(g, wi, wo)) / (mix.total * Mixture::cell(g));
 }
 
 Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
@@ -727,7 +737,7 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
         const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
         const int64_t* t = corners.texel;
         const float* s = corners.weight;
-        const size_t n2 = size_t(g.n_alpha) * g.n_beta;
+        const DecodedBooks& d = *m_decoded;
         for (int k = 0; k < 4; ++k) {
             if (s[k] == 0) continue;
             const IndexScale& e6 = m_index.p6[size_t(t[k])];
@@ -735,20 +745,20 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
                 for (int q = 0; q < 2; ++q) {
                     const double wt = double(s[k]) * view.phi_v.weight[p] * view.theta_v.weight[q];
                     if (wt == 0) continue;
-                    const IndexScale& e4 = b.p4[size_t(e6.index) * g.n_phi_v + view.phi_v.index[p]];
-                    const IndexScale& e3 =
-                        b.p3[size_t(e4.index) * g.n_theta_v + view.theta_v.index[q]];
-                    const float* f = m_merged->data() + size_t(e3.index) * n2 * 3;
+                    const IndexScale& v =
+                        d.view(e6.index, view.phi_v.index[p], view.theta_v.index[q]);
+                    const DecodedBooks::Sample* f = d.entry(v.index);
                     double sy = 0, s1 = 0, s2 = 0;
                     for (int i = 0; i < g.n_alpha; ++i)
                         for (int j = 0; j < g.n_beta; ++j) {
                             const double lw = g.light_weight(i, j);
-                            const float* v = f + (size_t(i) * g.n_beta + j) * 3;
-                            sy += lw * v[0];
-                            s1 += lw * v[1];
-                            s2 += lw * v[2];
+                            const DecodedBooks::Sample& smp = f[i * g.n_beta + j];
+                            sy += lw * DecodedBooks::luminance(smp);
+                            const std::array<float, 2> c = d.chroma(smp);
+                            s1 += lw * c[0];
+                            s2 += lw * c[1];
                         }
-                    y += wt * e6.scale * e4.scale * e3.scale * sy;
+                    y += wt * e6.scale * v.scale * sy;
                     c1 += wt * s1;
                     c2 += wt * s2;
                 }

@@ -8,6 +8,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/mlvq/codebooks.h"
+#include "btf/codecs/mlvq/decoded.h"
 #include "btf/codecs/mlvq/encoder.h"
 
 namespace btf {
@@ -61,10 +62,19 @@ std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& 
                                         Progress& progress = Progress::none(),
                                         EncodeReport* report = nullptr);
 
+/// The four texels of a bilinear lookup (wrapping) and their weights.
+struct TexelCorners {
+    int64_t texel[4];
+    float weight[4];
+};
+
 /// A material decoded from code-books and its P6.
 class MlvqMaterial final : public Material {
   public:
-    MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index);
+    /// `decoded`: the code-books' evaluation form, when several materials share them (built
+    /// here otherwise).
+    MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex index,
+                 std::shared_ptr<const DecodedBooks> decoded = nullptr);
 
     int width() const override { return m_index.width; }
     int height() const override { return m_index.height; }
@@ -96,16 +106,17 @@ class MlvqMaterial final : public Material {
     std::array<float, 3> planes(int64_t texel, const MlvqWeights& w) const;
 
   private:
+    struct Gathered;
+    void gather(const TexelCorners& corners, const MlvqWeights& w, Gathered& out) const;
+    void prefetch_views(const TexelCorners& corners, const MlvqWeights& w) const;
+    std::array<float, 3> combine(const Gathered& g) const;
     Rgb eval_weights(const Uv& uv, const MlvqWeights& w) const;
 
     std::shared_ptr<const Codebooks> m_books;
     TexelIndex m_index;
-    /// Per M entry its 2-D light function decoded: nα × nβ samples of (Y normalized, c₁, c₂),
-    /// shared by every material of the code-books. Evaluation then follows P6 → P4 → P3 → M and
-    /// reads the 2 × 2 (α, β) corners there instead of walking P2, P1, I2, I1 and C per corner.
-    std::shared_ptr<const std::vector<float>> m_merged;
-    /// Per M entry: its luminance's row integrals over u (nα, index units) and total (1).
-    std::shared_ptr<const std::vector<float>> m_rows;
+    /// P6 → (P4 ∘ P3) → M entries decoded to (α, β) samples, shared by every material of the
+    /// code-books (decoded.h).
+    std::shared_ptr<const DecodedBooks> m_decoded;
 
     struct Mixture;
     void mixture(const Uv& uv, const Vec3& wo, Mixture& out) const;

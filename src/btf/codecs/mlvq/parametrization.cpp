@@ -5,6 +5,10 @@
 #include <cstring>
 #include <string>
 
+#ifdef __AVX2__
+#include <immintrin.h>
+#endif
+
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/image.h"
 #include "btf/util/error.h"
@@ -34,9 +38,10 @@ Vec3 prepare(const Vec3& d) {
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) return {1, 0, 0};
     const double m = std::max({std::abs(x), std::abs(y), z});
     if (!(m > 0)) return {1, 0, 0};
-    x /= m, y /= m, z /= m;  // scaling first keeps tiny and huge vectors representable
-    const double len = std::sqrt(x * x + y * y + z * z);
-    return {x / len, y / len, z / len};
+    const double inv_m = 1 / m;  // scaling first keeps tiny and huge vectors representable
+    x *= inv_m, y *= inv_m, z *= inv_m;
+    const double inv_len = 1 / std::sqrt(x * x + y * y + z * z);
+    return {x * inv_len, y * inv_len, z * inv_len};
 }
 
 double wrap_2pi(double phi) {
@@ -106,7 +111,9 @@ AxisWeights periodic_axis(double x, int n) {
     if (n == 1) return {{0, 0}, {1.0f, 0.0f}};
     if (!std::isfinite(x)) x = 0;
     const double f = std::floor(x);
-    int i0 = static_cast<int>(std::fmod(f, double(n)));
+    // The evaluator's φv is in [0, n]: an integer remainder there, fmod (slow) beyond.
+    int i0 = f >= 0 && f <= 2.0 * n ? static_cast<int>(f) % n
+                                    : static_cast<int>(std::fmod(f, double(n)));
     if (i0 < 0) i0 += n;
     if (i0 >= n) i0 -= n;
     const float w1 = static_cast<float>(std::clamp(x - f, 0.0, 1.0));
@@ -234,6 +241,111 @@ MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo) {
     view_of_prepared(prepare(wo), theta, phi, c, s, true);
     onion_of_prepared(prepare(wi), c, s, alpha, u, true);
     return weights_of(grid, alpha, u, theta, phi);
+}
+
+#ifdef __AVX2__
+namespace {
+
+// fast_atan2 on four lanes whose |x|, |y| are not both 0.
+__m256d fast_atan2(__m256d y, __m256d x) {
+    const __m256d sign = _mm256_set1_pd(-0.0);
+    const __m256d ax = _mm256_andnot_pd(sign, x), ay = _mm256_andnot_pd(sign, y);
+    const __m256d hi = _mm256_max_pd(ax, ay), lo = _mm256_min_pd(ax, ay);
+    const __m256d a = _mm256_div_pd(lo, hi), t = _mm256_mul_pd(a, a);
+    __m256d p = _mm256_set1_pd(0.0024658027090396204);
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(-0.014447824985279543));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(0.039879561877043009));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(-0.072459898738032782));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(0.1050621951777013));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(-0.1416398149209013));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(0.19986477628185906));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(-0.33332653297665071));
+    p = _mm256_fmadd_pd(p, t, _mm256_set1_pd(0.99999990456937238));
+    __m256d r = _mm256_mul_pd(a, p);
+    r = _mm256_blendv_pd(r, _mm256_sub_pd(_mm256_set1_pd(kPi / 2), r),
+                         _mm256_cmp_pd(ay, ax, _CMP_GT_OQ));
+    r = _mm256_blendv_pd(r, _mm256_sub_pd(_mm256_set1_pd(kPi), r), x);  // sign bit of x
+    return _mm256_xor_pd(r, _mm256_and_pd(y, sign));
+}
+
+struct Lanes3 {
+    __m256d x, y, z;
+};
+
+Lanes3 load3(const Vec3* v) {
+    return {_mm256_setr_pd(v[0].x, v[1].x, v[2].x, v[3].x),
+            _mm256_setr_pd(v[0].y, v[1].y, v[2].y, v[3].y),
+            _mm256_setr_pd(v[0].z, v[1].z, v[2].z, v[3].z)};
+}
+
+// prepare() of four lanes; `regular` loses the lanes prepare() treats specially.
+Lanes3 prepare(Lanes3 d, __m256d& regular) {
+    const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0);
+    d.z = _mm256_max_pd(d.z, zero);
+    const __m256d limit = _mm256_set1_pd(1.7976931348623157e308);
+    const __m256d ax = _mm256_andnot_pd(sign, d.x), ay = _mm256_andnot_pd(sign, d.y);
+    // Finite lanes (NaN compares false; a NaN z is 0 by now, as in prepare()) with a non-zero
+    // scale.
+    regular = _mm256_and_pd(regular, _mm256_cmp_pd(ax, limit, _CMP_LE_OQ));
+    regular = _mm256_and_pd(regular, _mm256_cmp_pd(ay, limit, _CMP_LE_OQ));
+    regular = _mm256_and_pd(regular, _mm256_cmp_pd(d.z, limit, _CMP_LE_OQ));
+    __m256d m = _mm256_max_pd(_mm256_max_pd(ax, ay), d.z);
+    regular = _mm256_and_pd(regular, _mm256_cmp_pd(m, zero, _CMP_GT_OQ));
+    m = _mm256_blendv_pd(_mm256_set1_pd(1), m, regular);
+    const __m256d inv_m = _mm256_div_pd(_mm256_set1_pd(1), m);
+    d.x = _mm256_mul_pd(d.x, inv_m), d.y = _mm256_mul_pd(d.y, inv_m);
+    d.z = _mm256_mul_pd(d.z, inv_m);
+    const __m256d len = _mm256_sqrt_pd(
+        _mm256_fmadd_pd(d.x, d.x, _mm256_fmadd_pd(d.y, d.y, _mm256_mul_pd(d.z, d.z))));
+    const __m256d inv_len = _mm256_div_pd(_mm256_set1_pd(1), len);
+    return {_mm256_mul_pd(d.x, inv_len), _mm256_mul_pd(d.y, inv_len), _mm256_mul_pd(d.z, inv_len)};
+}
+
+}  // namespace
+#endif
+
+void lookup(const MlvqGrid& grid, const Vec3* wi, const Vec3* wo, size_t n, MlvqWeights* out) {
+    size_t k = 0;
+#ifdef __AVX2__
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1);
+    const __m256d two_pi = _mm256_set1_pd(2 * kPi);
+    for (; k + 4 <= n; k += 4) {
+        __m256d regular = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        const Lanes3 o = prepare(load3(wo + k), regular);
+        const Lanes3 i = prepare(load3(wi + k), regular);
+        // view_of_prepared()
+        const __m256d rho = _mm256_sqrt_pd(_mm256_fmadd_pd(o.x, o.x, _mm256_mul_pd(o.y, o.y)));
+        regular = _mm256_and_pd(regular, _mm256_cmp_pd(rho, zero, _CMP_GT_OQ));
+        const __m256d safe_rho = _mm256_blendv_pd(one, rho, regular);
+        const __m256d theta = fast_atan2(safe_rho, o.z);
+        __m256d phi = fast_atan2(o.y, _mm256_blendv_pd(one, o.x, regular));
+        phi = _mm256_add_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, zero, _CMP_LT_OQ)));
+        phi = _mm256_sub_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, two_pi, _CMP_GE_OQ)));
+        const __m256d inv_rho = _mm256_div_pd(one, safe_rho);
+        const __m256d c = _mm256_mul_pd(o.x, inv_rho), s = _mm256_mul_pd(o.y, inv_rho);
+        // onion_of_prepared()
+        const __m256d u = _mm256_min_pd(
+            one, _mm256_max_pd(_mm256_set1_pd(-1), _mm256_fmsub_pd(c, i.y, _mm256_mul_pd(s, i.x))));
+        const __m256d a = _mm256_fnmsub_pd(c, i.x, _mm256_mul_pd(s, i.y));  // −c·x − s·y
+        // α is undefined at the poles (a = z = 0): the scalar path returns 0 there.
+        const __m256d sign = _mm256_set1_pd(-0.0);
+        regular = _mm256_and_pd(
+            regular,
+            _mm256_cmp_pd(_mm256_max_pd(_mm256_andnot_pd(sign, a), i.z), zero, _CMP_GT_OQ));
+        const __m256d alpha = fast_atan2(a, _mm256_blendv_pd(one, i.z, regular));
+        alignas(32) double l_alpha[4], l_u[4], l_theta[4], l_phi[4];
+        _mm256_store_pd(l_alpha, alpha);
+        _mm256_store_pd(l_u, u);
+        _mm256_store_pd(l_theta, theta);
+        _mm256_store_pd(l_phi, phi);
+        const int mask = _mm256_movemask_pd(regular);
+        for (int lane = 0; lane < 4; ++lane)
+            out[k + lane] = (mask >> lane & 1) ? weights_of(grid, l_alpha[lane], l_u[lane],
+                                                            l_theta[lane], l_phi[lane])
+                                               : lookup(grid, wi[k + lane], wo[k + lane]);
+    }
+#endif
+    for (; k < n; ++k) out[k] = lookup(grid, wi[k], wo[k]);
 }
 
 float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* values) {

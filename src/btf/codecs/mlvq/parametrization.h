@@ -212,6 +212,10 @@ MlvqWeights lookup(const MlvqGrid& grid, const MlvqCoordinates& c);
 /// lookup(grid, to_mlvq(wi, wo)), with the angles computed by an atan2 accurate to 7e-9 rad
 /// instead of libm's (the evaluator's inner loop; the weights differ by less than 1e-8).
 MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo);
+/// lookup(grid, wi[k], wo[k]) for k < n, four at a time with AVX2 where the build has it (the
+/// scalar path for directions that need its conventions: zero, not finite, a view along the
+/// normal, a light at a pole); the weights agree with the scalar ones to within 1e-6.
+void lookup(const MlvqGrid& grid, const Vec3* wi, const Vec3* wo, size_t n, MlvqWeights* out);
 /// The multilinear reconstruction Σ weight · values[sample] over the 16 corners; `values` holds
 /// grid.samples() values of one channel.
 float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* values);

@@ -1,0 +1,95 @@
+#pragma once
+/// The code-books of an mlvq package as the evaluator and the sampler read them: built once per
+/// Codebooks and shared by every material that uses them.
+///
+/// Evaluation follows P6 → P4 → P3 → M → (P2 → P1, I2 → I1 → C) for each of a query's 4 texels ×
+/// 2 φv × 2 θv, and a random query touches a random part of every code-book. Walking the chain as
+/// stored costs seven dependent memory reads per corner; the decoded form has two levels:
+///
+///  - views: P4 and P3 fused, (P4 entry, φv, θv) → (M entry, c_P4 · c_P3);
+///  - entries: each M entry's 2-D light function on the (α, β) grid, 4 bytes per sample: the
+///    luminance c_P2 · P1 as an IEEE half (relative error ≤ 2⁻¹¹, below the 8-bit storage of P1)
+///    and the chromaticity I2 → I1 → C as its two 8-bit codes (exactly what a package stores; the
+///    codes are linear, so they are blended first and converted once). The 2 × 2 (α, β) corners
+///    of a lookup are two 8-byte reads, one per α row, that one SIMD shuffle decodes;
+///
+/// plus each entry's row integrals for importance sampling.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "btf/codecs/mlvq/codebooks.h"
+
+#ifdef __F16C__
+#include <immintrin.h>
+#endif
+
+namespace btf::mlvq {
+
+class DecodedBooks {
+  public:
+    /// Chromaticity codes are fitted to C's range per channel (8 bits, as a package stores them:
+    /// exact for code-books read from a package).
+    explicit DecodedBooks(const Codebooks& books);
+
+    struct Sample {
+        uint16_t y;         ///< luminance, IEEE half bits
+        uint8_t chroma[2];  ///< chromaticity codes
+    };
+
+    /// A query's 2 × 2 (α, β) corners within an entry: samples off[a] and off[a] + 1 of each α
+    /// row a (β neighbours are adjacent: the β axis is clamped, not periodic) and their weights
+    /// w[a][q].
+    struct Corners {
+        int off[2];
+        float w[2][2];
+        Corners() = default;
+        Corners(const MlvqGrid& g, const MlvqWeights& lw);
+    };
+    /// Σ_c y_scale[c] · Y_c and Σ_c c_weight[c] · (c₁, c₂)_c over `count` entries, Y_c and
+    /// (c₁, c₂)_c the entries' values blended over the corners.
+    std::array<float, 3> blend(const Sample* const* entries, const float* y_scale,
+                               const float* c_weight, int count, const Corners& corners) const;
+
+    const MlvqGrid& grid() const { return m_grid; }
+    /// (M entry, c_P4 · c_P3) of P4 entry `p4` at view sample (φv, θv).
+    const IndexScale& view(uint32_t p4, int phi_v, int theta_v) const {
+        return m_views[(size_t(p4) * m_grid.n_phi_v + phi_v) * m_grid.n_theta_v + theta_v];
+    }
+    /// Address of the same, for prefetching.
+    const IndexScale* views(uint32_t p4) const {
+        return m_views.data() + size_t(p4) * m_grid.n_phi_v * m_grid.n_theta_v;
+    }
+    /// The nα × nβ samples of M entry `m`, α-major.
+    const Sample* entry(uint32_t m) const { return m_samples.data() + size_t(m) * m_per_entry; }
+    /// Per M entry: the row integrals of its luminance over β (trapezoid, sample-index units)
+    /// for each α, then their integral over α: nα + 1 values.
+    const float* rows(uint32_t m) const {
+        return m_rows.data() + size_t(m) * (size_t(m_grid.n_alpha) + 1);
+    }
+    size_t size_m() const { return m_per_entry ? m_samples.size() / m_per_entry : 0; }
+
+    static float luminance(const Sample& s) {
+#ifdef __F16C__
+        return _cvtsh_ss(s.y);  // one instruction; Eigen's portable conversion takes a dozen
+#else
+        return Eigen::half_impl::half_to_float(Eigen::half_impl::raw_uint16_to_half(s.y));
+#endif
+    }
+    std::array<float, 2> chroma(const Sample& s) const {
+        return {m_chroma_lo[0] + m_chroma_step[0] * s.chroma[0],
+                m_chroma_lo[1] + m_chroma_step[1] * s.chroma[1]};
+    }
+
+  private:
+    MlvqGrid m_grid;
+    size_t m_per_entry = 0;
+    std::vector<IndexScale> m_views;
+    std::vector<Sample> m_samples;
+    float m_chroma_lo[2] = {0, 0}, m_chroma_step[2] = {0, 0};
+    std::vector<float> m_rows;
+};
+
+}  // namespace btf::mlvq
