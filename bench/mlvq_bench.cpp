@@ -172,6 +172,13 @@ int main(int argc, char** argv) {
         };
         const double s_native = sample_rate(
             [&](const Query& q, double a, double b) { return material->sample(q.uv, q.wo, a, b); });
+        std::vector<SampleQuery> sample_queries(random.size());
+        for (size_t i = 0; i < random.size(); ++i)
+            sample_queries[i] = {random[i].uv, random[i].wo, xi[i][0], xi[i][1]};
+        std::vector<LightSample> samples(random.size());
+        const double s_batch = double(random.size()) / bench::best_of(repeat, [&] {
+                                   material->sample_batch(sample_queries, samples);
+                               });
         const double s_generic_mlvq = sample_rate([&](const Query& q, double a, double b) {
             return material->generic_sampler().sample(q.uv, q.wo, a, b);
         });
@@ -180,7 +187,8 @@ int main(int argc, char** argv) {
         std::printf(
             "\n| importance sampling, one thread, random (uv, ωo, ξ) | per second |\n"
             "|---|---|\n");
-        std::printf("| mlvq native (code-books, §5.2) | %.2f M |\n", s_native / 1e6);
+        std::printf("| mlvq native (code-books, §5.2), sample() | %.2f M |\n", s_native / 1e6);
+        std::printf("| mlvq native, one sample_batch() | %.2f M |\n", s_batch / 1e6);
         std::printf("| generic tabulated sampler on the mlvq material | %.2f M |\n",
                     s_generic_mlvq / 1e6);
         std::printf("| generic tabulated sampler on fmf C = 32 | %.2f M |\n", s_generic_fmf / 1e6);

@@ -62,6 +62,15 @@ TEST(LightSampler, MaterialDefaultsUseTheGenericSampler) {
     EXPECT_EQ(m.pdf(c.uv, c.wo, a.wi), a.pdf);
     EXPECT_EQ(m.generic_sampler().tile_size(), 16);
     EXPECT_EQ(m.generic_sampler().tiles_x(), 1);
+    // sample_batch() defaults to sample() one by one.
+    const std::vector<SampleQuery> queries = {{c.uv, c.wo, 0.3, 0.8}, {c.uv, c.wo, 0.9, 0.1}};
+    std::vector<LightSample> batch(2);
+    m.sample_batch(queries, batch);
+    EXPECT_EQ(batch[0].wi, a.wi);
+    EXPECT_EQ(batch[1].wi, m.sample(c.uv, c.wo, 0.9, 0.1).wi);
+    batch.resize(1);
+    EXPECT_EQ(test::error_of([&] { m.sample_batch(queries, batch); }),
+              "sample_batch: 2 queries but 1 outputs");
 }
 
 TEST(LightSampler, SampleReportsItsPdfValueAndWeight) {

@@ -1,6 +1,7 @@
 #include "btf/core/material.h"
 
 #include "btf/core/light_sampler.h"
+#include "btf/util/error.h"
 
 namespace btf {
 
@@ -31,6 +32,14 @@ const LightSampler& LazyLightSampler::get(const Material& material) const {
 
 LightSample Material::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
     return generic_sampler().sample(uv, wo, xi1, xi2);
+}
+
+void Material::sample_batch(std::span<const SampleQuery> queries,
+                            std::span<LightSample> out) const {
+    if (queries.size() != out.size())
+        fail("sample_batch: {} queries but {} outputs", queries.size(), out.size());
+    for (size_t i = 0; i < queries.size(); ++i)
+        out[i] = sample(queries[i].uv, queries[i].wo, queries[i].xi1, queries[i].xi2);
 }
 
 double Material::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {

@@ -46,6 +46,13 @@ struct LightSample {
     Rgb weight;
 };
 
+/// One request of Material::sample_batch(): position, view direction and the two random numbers.
+struct SampleQuery {
+    Uv uv;
+    Vec3 wo;
+    double xi1 = 0, xi2 = 0;
+};
+
 class Material;
 class LightSampler;
 
@@ -97,6 +104,10 @@ class Material {
     /// luminance; continuous in (xi1, xi2) wherever the method allows. Deterministic and
     /// thread-safe. Default: generic_sampler().sample().
     virtual LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const;
+    /// sample() for every query; out.size() must equal queries.size(). The same results as
+    /// sample() one by one; implementations may overlap the memory accesses of many queries.
+    virtual void sample_batch(std::span<const SampleQuery> queries,
+                              std::span<LightSample> out) const;
     /// The density (per unit solid angle) with which sample(uv, wo, ·, ·) draws `wi`: exactly the
     /// pdf sample() reports for that direction; 0 below the horizon. Default: the generic sampler.
     virtual double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const;

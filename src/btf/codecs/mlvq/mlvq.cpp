@@ -332,6 +332,7 @@ MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex in
 // weight, and the offsets and weights of the 2 × 2 (α, β) corners within an entry.
 struct MlvqMaterial::Gathered {
     int count = 0;
+    uint32_t index[16];  ///< M entries
     const DecodedBooks::Sample* entry[16];
     float y_scale[16], c_weight[16];
     DecodedBooks::Corners corners;
@@ -361,6 +362,7 @@ void MlvqMaterial::gather(const TexelCorners& corners, const MlvqWeights& w, Gat
         for (int j = 0; j < 4; ++j) {
             const IndexScale& v = views[offset[j]];
             const float wt = corners.weight[k] * weight[j];
+            out.index[k * 4 + j] = v.index;
             out.entry[k * 4 + j] = d.entry(v.index);
             out.y_scale[k * 4 + j] = wt * e6.scale * v.scale;
             out.c_weight[k * 4 + j] = wt;
@@ -571,73 +573,17 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
 
 // ---- importance sampling and albedo -------------------------------------------------------------
 
-// The ≤ 16 components of a query's light function: M entries with weights (interpolation weight
-// × luminance scale) and masses (weight × the entry's integral, index units).
+// A query's light function as a mixture of the 16 gathered M entries (weights y_scale, each an
+// entry bilinear in (α, u)) with their masses (weight × the entry's integral, index units).
 struct MlvqMaterial::Mixture {
-    int count = 0;
-    uint32_t entry[16];
-    double weight[16], mass[16];
+    Gathered g;
+    double mass[16];
     double total = 0;
-    double phi_v = 0;
-    MlvqWeights view;  ///< the view's θv, φv weights (α, β unset)
+    ViewLookup view;
 
-    // The mixture's luminance at light weights (α, β) of `w`, in the units of the masses.
-    double density(const DecodedBooks& d, const MlvqWeights& w) const {
-        const int n_beta = d.grid().n_beta;
-        double value = 0;
-        for (int c = 0; c < count; ++c) {
-            const DecodedBooks::Sample* f = d.entry(entry[c]);
-            double v = 0;
-            for (int a = 0; a < 2; ++a)
-                for (int q = 0; q < 2; ++q)
-                    v += double(w.alpha.weight[a]) * w.beta.weight[q] *
-                         DecodedBooks::luminance(f[w.alpha.index[a] * n_beta + w.beta.index[q]]);
-            value += weight[c] * v;
-        }
-        return std::max(0.0, value);
-    }
     // Masses are in sample-index units: one unit is π/(nα − 1) · 2/(nβ − 1) of solid angle.
     static double cell(const MlvqGrid& g) { return kPi / (g.n_alpha - 1) * 2.0 / (g.n_beta - 1); }
 };
-
-void MlvqMaterial::mixture(const Uv& uv, const Vec3& wo, Mixture& out) const {
-    const Codebooks& b = *m_books;
-    const MlvqGrid& g = b.grid;
-    // The view's weights through the fast lookup; its azimuth back from the φv weights (the
-    // inverse of the periodic axis, exact up to rounding).
-    const MlvqWeights w = lookup(g, Vec3{0, 0, 1}, wo);
-    out.view = w;
-    out.phi_v = g.n_phi_v == 1
-                    ? std::atan2(wo.y, wo.x)
-                    : (w.phi_v.index[0] + double(w.phi_v.weight[1])) * 2 * kPi / g.n_phi_v;
-    const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
-    const int64_t* t = corners.texel;
-    const float* s = corners.weight;
-    const DecodedBooks& d = *m_decoded;
-    out.count = 0;
-    out.total = 0;
-    for (int k = 0; k < 4; ++k) {
-        if (s[k] == 0) continue;
-        const IndexScale& e6 = m_index.p6[size_t(t[k])];
-        for (int p = 0; p < 2; ++p) {
-            const float wp = s[k] * w.phi_v.weight[p];
-            if (wp == 0) continue;
-            for (int q = 0; q < 2; ++q) {
-                const float wt = wp * w.theta_v.weight[q];
-                if (wt == 0) continue;
-                const IndexScale& v = d.view(e6.index, w.phi_v.index[p], w.theta_v.index[q]);
-                const double weight = double(wt) * e6.scale * v.scale;
-                const double mass = weight * d.rows(v.index)[g.n_alpha];
-                if (!(mass > 0)) continue;
-                out.entry[out.count] = v.index;
-                out.weight[out.count] = weight;
-                out.mass[out.count] = mass;
-                out.total += mass;
-                ++out.count;
-            }
-        }
-    }
-}
 
 namespace {
 
@@ -670,61 +616,165 @@ Vec3 uniform_hemisphere(double xi1, double xi2) {
 
 }  // namespace
 
-LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
-    xi1 = std::clamp(xi1, 0.0, std::nextafter(1.0, 0.0));
-    xi2 = std::clamp(xi2, 0.0, std::nextafter(1.0, 0.0));
+// One sample() in stages, so that sample_batch() can run a group of queries through each stage
+// and prefetch what the next stage reads; sample() runs the stages one after the other.
+struct MlvqMaterial::SampleState {
+    Uv uv;
+    Vec3 wo;
+    double xi1 = 0, xi2 = 0;
+    TexelCorners corners;
     Mixture mix;
-    mixture(uv, wo, mix);
+    int component = 0;    ///< the mixture component drawn
+    int i0 = 0;           ///< its α row below the drawn α
+    double x = 0, y = 0;  ///< drawn (α, u) as fractional sample indices
     LightSample out;
-    if (mix.count == 0) {
-        out.wi = uniform_hemisphere(xi1, xi2);
-        out.pdf = 1 / (2 * kPi);
-    } else {
-        // The component, then ξ1 rescaled within its share.
-        double target = xi1 * mix.total;
-        int c = 0;
-        while (c + 1 < mix.count && target >= mix.mass[c]) target -= mix.mass[c++];
-        const double share = std::clamp(target / mix.mass[c], 0.0, 1.0);
-        const MlvqGrid& g = m_books->grid;
-        const float* rows = m_decoded->rows(mix.entry[c]);
-        const DecodedBooks::Sample* f = m_decoded->entry(mix.entry[c]);
-        const double x = invert_linear([rows](int i) { return double(rows[i]); }, g.n_alpha,
-                                       share * rows[g.n_alpha]);
-        const int i0 = std::min(int(x), g.n_alpha - 2);
-        const double tx = x - i0;
-        const auto column = [&](int j) {
-            return (1 - tx) * DecodedBooks::luminance(f[i0 * g.n_beta + j]) +
-                   tx * DecodedBooks::luminance(f[(i0 + 1) * g.n_beta + j]);
-        };
-        double row_mass = 0;
-        for (int j = 0; j + 1 < g.n_beta; ++j) row_mass += 0.5 * (column(j) + column(j + 1));
-        const double y = invert_linear(column, g.n_beta, xi2 * row_mass);
-        const double alpha = -kPi / 2 + kPi * x / (g.n_alpha - 1);
-        const double u = -1 + 2 * y / (g.n_beta - 1);
-        out.wi = direction_from_onion_u(alpha, u, mix.phi_v);
-        out.wi.z = std::max(out.wi.z, 0.0);
-        // The light weights of (x, y) directly: what lookup(wi, wo) returns up to rounding.
-        MlvqWeights w = mix.view;
-        const int j0 = std::min(int(y), g.n_beta - 2);
-        w.alpha = {{i0, i0 + 1}, {float(1 - tx), float(tx)}};
-        w.beta = {{j0, j0 + 1}, {float(1 - (y - j0)), float(y - j0)}};
-        out.pdf = mix.density(*m_decoded, w) / (mix.total * Mixture::cell(g));
-        out.value = eval_weights(uv, w);
+};
+
+// View lookup and texels.
+void MlvqMaterial::sample_begin(const SampleQuery& q, SampleState& s) const {
+    s.uv = q.uv;
+    s.wo = q.wo;
+    s.xi1 = std::clamp(q.xi1, 0.0, std::nextafter(1.0, 0.0));
+    s.xi2 = std::clamp(q.xi2, 0.0, std::nextafter(1.0, 0.0));
+    s.mix.view = lookup_view(m_books->grid, q.wo);
+    s.corners = texel_corners(q.uv, m_index.width, m_index.height);
+}
+
+// The masses of the mixture's components (gathered into s.mix.g).
+void MlvqMaterial::sample_mixture(SampleState& s) const {
+    s.mix.total = 0;
+    const int n_alpha = m_books->grid.n_alpha;
+    for (int c = 0; c < s.mix.g.count; ++c) {
+        const double mass = double(s.mix.g.y_scale[c]) * m_decoded->rows(s.mix.g.index[c])[n_alpha];
+        s.mix.mass[c] = mass > 0 ? mass : 0;
+        s.mix.total += s.mix.mass[c];
     }
-    if (mix.count == 0) out.value = eval(uv, out.wi, wo);
+}
+
+// The component, then α by the inverse CDF of its row masses (ξ1 rescaled within its share).
+void MlvqMaterial::sample_alpha(SampleState& s) const {
+    if (!(s.mix.total > 0)) return;
+    double target = s.xi1 * s.mix.total;
+    int c = 0;
+    while (c + 1 < s.mix.g.count && (target >= s.mix.mass[c] || s.mix.mass[c] == 0))
+        target -= s.mix.mass[c++];
+    const double share = std::clamp(target / s.mix.mass[c], 0.0, 1.0);
+    const int n_alpha = m_books->grid.n_alpha;
+    const float* rows = m_decoded->rows(s.mix.g.index[c]);
+    s.component = c;
+    s.x = invert_linear([rows](int i) { return double(rows[i]); }, n_alpha, share * rows[n_alpha]);
+    s.i0 = std::min(int(s.x), n_alpha - 2);
+}
+
+// u by the inverse CDF of the conditional along the two neighbouring rows; the direction and
+// the light weights of (α, u) (what lookup(wi, wo) returns up to rounding).
+void MlvqMaterial::sample_beta(SampleState& s) const {
+    const MlvqGrid& g = m_books->grid;
+    if (!(s.mix.total > 0)) {
+        s.out.wi = uniform_hemisphere(s.xi1, s.xi2);
+        return;
+    }
+    const DecodedBooks::Sample* f = s.mix.g.entry[s.component];
+    const double tx = s.x - s.i0;
+    double column[MlvqGrid::kMaxAxis];
+    double row_mass = 0;
+    for (int j = 0; j < g.n_beta; ++j) {
+        column[j] = (1 - tx) * DecodedBooks::luminance(f[s.i0 * g.n_beta + j]) +
+                    tx * DecodedBooks::luminance(f[(s.i0 + 1) * g.n_beta + j]);
+        if (j > 0) row_mass += 0.5 * (column[j - 1] + column[j]);
+    }
+    s.y = invert_linear([&column](int j) { return column[j]; }, g.n_beta, s.xi2 * row_mass);
+    const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
+    const double u = -1 + 2 * s.y / (g.n_beta - 1);
+    s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);
+    s.out.wi.z = std::max(s.out.wi.z, 0.0);
+    MlvqWeights w = s.mix.view.weights;
+    const int j0 = std::min(int(s.y), g.n_beta - 2);
+    w.alpha = {{s.i0, s.i0 + 1}, {float(1 - tx), float(tx)}};
+    w.beta = {{j0, j0 + 1}, {float(1 - (s.y - j0)), float(s.y - j0)}};
+    s.mix.g.corners = DecodedBooks::Corners(g, w);
+}
+
+// The model at the drawn direction: its value, and its luminance over the mixture's mass as pdf.
+void MlvqMaterial::sample_finish(SampleState& s) const {
+    LightSample& out = s.out;
+    if (!(s.mix.total > 0)) {
+        out.pdf = 1 / (2 * kPi);
+        out.value = eval(s.uv, out.wi, s.wo);
+    } else {
+        const std::array<float, 3> p = combine(s.mix.g);
+        out.pdf = std::max(0.0, double(p[0])) / (s.mix.total * Mixture::cell(m_books->grid));
+        out.value = from_planes(m_books->colour, p[0], p[1], p[2]);
+    }
+    out.weight = {};
     if (out.pdf > 0)
         out.weight = {float(out.value.r / out.pdf), float(out.value.g / out.pdf),
                       float(out.value.b / out.pdf)};
-    return out;
+}
+
+LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+    SampleState s;
+    sample_begin({uv, wo, xi1, xi2}, s);
+    gather(s.corners, s.mix.view.weights, s.mix.g);
+    sample_mixture(s);
+    sample_alpha(s);
+    sample_beta(s);
+    sample_finish(s);
+    return s.out;
+}
+
+void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
+                                std::span<LightSample> out) const {
+    if (queries.size() != out.size())
+        fail("sample_batch: {} queries but {} outputs", queries.size(), out.size());
+    // The stages of sample() for a group at a time, each prefetching what the next one reads
+    // (as eval_batch does): P6, P4 ∘ P3, the entries' row masses, the drawn rows, the corners.
+    constexpr size_t kGroup = 16;
+    std::vector<SampleState> group(kGroup);
+    const int n_beta = m_books->grid.n_beta;
+    for (size_t begin = 0; begin < queries.size(); begin += kGroup) {
+        const size_t n = std::min(kGroup, queries.size() - begin);
+        for (size_t i = 0; i < n; ++i) {
+            sample_begin(queries[begin + i], group[i]);
+            for (int k = 0; k < 4; ++k)
+                __builtin_prefetch(&m_index.p6[size_t(group[i].corners.texel[k])]);
+        }
+        for (size_t i = 0; i < n; ++i) prefetch_views(group[i].corners, group[i].mix.view.weights);
+        for (size_t i = 0; i < n; ++i) {
+            SampleState& s = group[i];
+            gather(s.corners, s.mix.view.weights, s.mix.g);
+            for (int c = 0; c < s.mix.g.count; ++c)
+                __builtin_prefetch(m_decoded->rows(s.mix.g.index[c]));
+        }
+        for (size_t i = 0; i < n; ++i) {
+            SampleState& s = group[i];
+            sample_mixture(s);
+            sample_alpha(s);
+            const DecodedBooks::Sample* f = s.mix.g.entry[s.component];
+            __builtin_prefetch(f + s.i0 * n_beta);
+            __builtin_prefetch(f + (s.i0 + 2) * n_beta - 1);
+        }
+        for (size_t i = 0; i < n; ++i) {
+            sample_beta(group[i]);
+            for (int c = 0; c < group[i].mix.g.count; ++c) group[i].mix.g.prefetch(c);
+        }
+        for (size_t i = 0; i < n; ++i) {
+            sample_finish(group[i]);
+            out[begin + i] = group[i].out;
+        }
+    }
 }
 
 double MlvqMaterial::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
     if (!(wi.z >= 0)) return 0;
-    Mixture mix;
-    mixture(uv, wo, mix);
-    if (mix.count == 0) return 1 / (2 * kPi);
+    SampleState s;
+    sample_begin({uv, wo, 0, 0}, s);
+    gather(s.corners, s.mix.view.weights, s.mix.g);
+    sample_mixture(s);
+    if (!(s.mix.total > 0)) return 1 / (2 * kPi);
     const MlvqGrid& g = m_books->grid;
-    return mix.density(*m_decoded, lookup(g, wi, wo)) / (mix.total * Mixture::cell(g));
+    s.mix.g.corners = DecodedBooks::Corners(g, lookup(g, wi, wo));
+    return std::max(0.0, double(combine(s.mix.g)[0])) / (s.mix.total * Mixture::cell(g));
 }
 
 Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {

@@ -94,6 +94,9 @@ class MlvqMaterial final : public Material {
     /// what eval() returns as Y. Continuous in ξ2, and in ξ1 within each mixture component.
     /// A texel of zero luminance samples the hemisphere uniformly.
     LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
+    /// sample() for a batch, with the memory accesses of a group of queries overlapped.
+    void sample_batch(std::span<const SampleQuery> queries,
+                      std::span<LightSample> out) const override;
     double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
     /// (1/π) ∫ value dωi from the decoded M entries' integrals: exact for the model with YCbCr
     /// (linear in Y, Cb, Cr), a quadrature over the grid's light samples with LogLuv.
@@ -119,7 +122,12 @@ class MlvqMaterial final : public Material {
     std::shared_ptr<const DecodedBooks> m_decoded;
 
     struct Mixture;
-    void mixture(const Uv& uv, const Vec3& wo, Mixture& out) const;
+    struct SampleState;
+    void sample_begin(const SampleQuery& q, SampleState& s) const;
+    void sample_mixture(SampleState& s) const;
+    void sample_alpha(SampleState& s) const;
+    void sample_beta(SampleState& s) const;
+    void sample_finish(SampleState& s) const;
 };
 
 }  // namespace mlvq

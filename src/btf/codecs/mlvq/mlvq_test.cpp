@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "btf/codecs/material_source.h"
@@ -330,6 +331,36 @@ TEST(MlvqSampling, FollowsItsPdfWhichIntegratesToOne) {
             EXPECT_NEAR(ls.weight.g, v.g / ls.pdf, 1e-5 * std::abs(v.g / ls.pdf) + 1e-9);
         }
     }
+}
+
+// sample_batch() runs the stages of sample() over groups: the same samples, bit for bit, for
+// random queries (more than a group, and a tail) and for a texel of zero luminance.
+TEST(MlvqSampling, BatchEqualsOneByOne) {
+    const auto material = mlvq_codec().open(mlvq_codec().encode(leather(), small_grid()));
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> uni(0, 1);
+    std::vector<SampleQuery> queries(37);
+    for (SampleQuery& q : queries) {
+        q.uv = {uni(rng), uni(rng)};
+        q.wo = Direction{std::acos(uni(rng)), 2 * kPi * uni(rng)}.vector();
+        q.xi1 = uni(rng);
+        q.xi2 = uni(rng);
+    }
+    queries[3].xi1 = 1.5;  // clamped
+    queries[5].wo = {0, 0, 1};
+    std::vector<LightSample> batch(queries.size());
+    material->sample_batch(queries, batch);
+    for (size_t i = 0; i < queries.size(); ++i) {
+        const SampleQuery& q = queries[i];
+        const LightSample one = material->sample(q.uv, q.wo, q.xi1, q.xi2);
+        EXPECT_EQ(batch[i].wi, one.wi) << i;
+        EXPECT_EQ(batch[i].pdf, one.pdf) << i;
+        EXPECT_EQ(batch[i].value.g, one.value.g) << i;
+        EXPECT_EQ(batch[i].weight.r, one.weight.r) << i;
+    }
+    std::vector<LightSample> wrong(2);
+    EXPECT_EQ(test::error_of([&] { material->sample_batch(queries, wrong); }),
+              "sample_batch: 37 queries but 2 outputs");
 }
 
 // The pdf is the model's luminance over its integral: pdf(ωi) / Y(ωi) is the same for every ωi.

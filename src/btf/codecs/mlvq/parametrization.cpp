@@ -188,8 +188,9 @@ double MlvqGrid::light_weight(int i, int j) const {
 
 // ---- mapping -----------------------------------------------------------------------------------
 
-OnionFrame::OnionFrame(double phi_v) {
-    const double c = std::cos(phi_v), s = std::sin(phi_v);
+OnionFrame::OnionFrame(double phi_v) : OnionFrame(std::cos(phi_v), std::sin(phi_v)) {}
+
+OnionFrame::OnionFrame(double c, double s) {
     e_beta = {-s, c, 0};
     e_alpha = {-c, -s, 0};
     n = {0, 0, 1};
@@ -202,7 +203,10 @@ OnionAngles onion_from_direction(const Vec3& wi, double phi_v) {
 }
 
 Vec3 direction_from_onion_u(double alpha, double sin_beta, double phi_v) {
-    const OnionFrame f(phi_v);
+    return direction_from_onion_u(alpha, sin_beta, OnionFrame(phi_v));
+}
+
+Vec3 direction_from_onion_u(double alpha, double sin_beta, const OnionFrame& f) {
     const double u = std::clamp(sin_beta, -1.0, 1.0);
     const double cb = std::sqrt(std::max(0.0, 1 - u * u));
     return f.e_beta * u + f.e_alpha * (std::sin(alpha) * cb) + f.n * (std::cos(alpha) * cb);
@@ -233,6 +237,12 @@ void from_mlvq(const MlvqCoordinates& c, Vec3& wi, Vec3& wo) {
 
 MlvqWeights lookup(const MlvqGrid& grid, const MlvqCoordinates& c) {
     return weights_of(grid, c.alpha, std::sin(c.beta), c.theta_v, c.phi_v);
+}
+
+ViewLookup lookup_view(const MlvqGrid& grid, const Vec3& wo) {
+    double theta = 0, phi = 0, c = 1, s = 0;
+    view_of_prepared(prepare(wo), theta, phi, c, s, true);
+    return {weights_of(grid, 0, 0, theta, phi), OnionFrame(c, s)};
 }
 
 MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo) {

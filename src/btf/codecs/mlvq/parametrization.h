@@ -164,6 +164,8 @@ struct OnionAngles {
 struct OnionFrame {
     Vec3 e_beta, e_alpha, n;
     explicit OnionFrame(double phi_v);
+    /// From cos φv and sin φv.
+    OnionFrame(double cos_phi_v, double sin_phi_v);
 };
 
 /// ωi (any non-zero vector; clamped onto the horizon when below it) → (α, β) in the frame of φv.
@@ -174,6 +176,8 @@ OnionAngles onion_from_direction(const Vec3& wi, double phi_v);
 Vec3 direction_from_onion(const OnionAngles& angles, double phi_v);
 /// The same with u = sin β given instead of β (exact at the poles: cos β = √(1 − u²)).
 Vec3 direction_from_onion_u(double alpha, double sin_beta, double phi_v);
+/// The same in a frame built beforehand.
+Vec3 direction_from_onion_u(double alpha, double sin_beta, const OnionFrame& frame);
 
 /// A (light, view) pair in grid coordinates (radians).
 struct MlvqCoordinates {
@@ -212,6 +216,13 @@ MlvqWeights lookup(const MlvqGrid& grid, const MlvqCoordinates& c);
 /// lookup(grid, to_mlvq(wi, wo)), with the angles computed by an atan2 accurate to 7e-9 rad
 /// instead of libm's (the evaluator's inner loop; the weights differ by less than 1e-8).
 MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo);
+/// The view part of a lookup: θv and φv weights of ωo (α and β weights are left at 0), and the
+/// onion frame of its azimuth (φv = 0 for a view along the normal), as lookup() has them.
+struct ViewLookup {
+    MlvqWeights weights;
+    OnionFrame frame{0.0};
+};
+ViewLookup lookup_view(const MlvqGrid& grid, const Vec3& wo);
 /// lookup(grid, wi[k], wo[k]) for k < n, four at a time with AVX2 where the build has it (the
 /// scalar path for directions that need its conventions: zero, not finite, a view along the
 /// normal, a light at a pole); the weights agree with the scalar ones to within 1e-6.
