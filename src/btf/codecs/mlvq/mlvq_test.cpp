@@ -300,6 +300,50 @@ TEST(Mlvq, SharedCodeBooksDecodeEachMaterial) {
     EXPECT_EQ(open_all(prefix).size(), 1u);
 }
 
+// The evaluator's decoded code-books (decoded.h) hold the chain of equation 4: through the fused
+// P4 ∘ P3 and an M entry's samples, every grid sample of every texel decodes to what
+// Codebooks::sample() walks to, luminance within the half's 2⁻¹¹ and chromaticity exactly up to
+// float rounding (a package stores C in 8-bit codes, which the decoded form keeps).
+TEST(MlvqDecoded, EqualsTheCodeBookChain) {
+    const Package package = mlvq_codec().encode(leather(), small_grid());
+    const Codebooks books = read_codebooks(package);
+    const DecodedBooks d(books);
+    const MlvqGrid& g = books.grid;
+    ASSERT_EQ(d.size_m(), books.size_m());
+    const std::vector<IndexScale> p6 = open_all(package).front()->texel_index().p6;
+    int64_t compared = 0;
+    for (size_t t = 0; t < p6.size(); t += 7)
+        for (int m = 0; m < g.n_phi_v; ++m)
+            for (int k = 0; k < g.n_theta_v; ++k) {
+                const IndexScale& v = d.view(p6[t].index, m, k);
+                const DecodedBooks::Sample* e = d.entry(v.index);
+                for (int i = 0; i < g.n_alpha; ++i)
+                    for (int j = 0; j < g.n_beta; ++j) {
+                        const std::array<float, 3> chain = books.sample(p6[t], m, k, i, j);
+                        const DecodedBooks::Sample& s = e[i * g.n_beta + j];
+                        const double y = double(p6[t].scale) * v.scale * DecodedBooks::luminance(s);
+                        EXPECT_NEAR(y, chain[0], 5e-4 * std::abs(chain[0]) + 1e-12);
+                        const std::array<float, 2> c = d.chroma(s);
+                        EXPECT_NEAR(c[0], chain[1], 1e-6);
+                        EXPECT_NEAR(c[1], chain[2], 1e-6);
+                        ++compared;
+                    }
+            }
+    EXPECT_GT(compared, 10000);
+    // Row integrals: trapezoids of the decoded luminance.
+    const float* rows = d.rows(0);
+    double total = 0;
+    for (int i = 0; i < g.n_alpha; ++i) {
+        double sum = 0;
+        for (int j = 0; j < g.n_beta; ++j)
+            sum += DecodedBooks::luminance(d.entry(0)[i * g.n_beta + j]) *
+                   ((j == 0 || j == g.n_beta - 1) ? 0.5 : 1.0);
+        EXPECT_NEAR(rows[i], sum, 1e-6 * sum + 1e-12);
+        total += sum * ((i == 0 || i == g.n_alpha - 1) ? 0.5 : 1.0);
+    }
+    EXPECT_NEAR(rows[g.n_alpha], total, 1e-6 * total + 1e-12);
+}
+
 // Importance sampling (§5.2): the directions follow the reported pdf (χ² test over equal-area
 // bins), the pdf integrates to 1 and is what sample() reports, for several (uv, ωo) including
 // a view between grid samples and a position between texels.
