@@ -4,6 +4,7 @@
 # package is closest in size, and measure all three with `btf quality` (RMSE, MSSIM on Y,
 # BTF-CIELab on a grid × grid of viewing conditions). Usage:
 #   bash bench/mlvq_vs_fmf_lpca.sh [build-dir] [threshold] [synthetic size] [grid] [presets...]
+# REAL=0 leaves out the real measured view.
 set -euo pipefail
 build=${1:-build/release}
 threshold=${2:-3e-5}
@@ -24,14 +25,24 @@ measure() {  # reference package → "rmse mssim(Y) btf-cielab-mean"
 print("%.4f %.4f %.3f" % (j["rmse"], j["ssim"]["Y"], j["btf_cielab"]["mean"]))'
 }
 closest() {  # reference codec target-bytes → the component count whose package is closest
-  local ref=$1 codec=$2 target=$3 best=1 best_gap=-1 c s gap
-  for c in $(seq 1 64); do
-    "$btf" --quiet compress "$ref" -o "$work/c.btfpkg" --codec "$codec" --components "$c" --no-error >/dev/null
-    s=$(bytes "$work/c.btfpkg"); gap=$(( s > target ? s - target : target - s ))
-    if [ "$best_gap" -lt 0 ] || [ "$gap" -lt "$best_gap" ]; then best=$c; best_gap=$gap; fi
-    [ "$s" -gt "$target" ] && break
+  # (sizes grow with the count: bisect for the first count at or above the target, then take it
+  # or the one below)
+  local ref=$1 codec=$2 target=$3 lo=1 hi=128 mid s
+  size_of() {
+    "$btf" --quiet compress "$ref" -o "$work/c.btfpkg" --codec "$codec" --components "$1" --no-error >/dev/null
+    bytes "$work/c.btfpkg"
+  }
+  if [ "$(size_of $hi)" -lt "$target" ]; then echo $hi; return; fi
+  while [ $lo -lt $hi ]; do
+    mid=$(( (lo + hi) / 2 ))
+    if [ "$(size_of $mid)" -lt "$target" ]; then lo=$((mid + 1)); else hi=$mid; fi
   done
-  echo "$best"
+  if [ "$lo" -gt 1 ]; then
+    local above below
+    above=$(size_of "$lo"); below=$(size_of $((lo - 1)))
+    if [ $((target - below)) -lt $((above - target)) ]; then lo=$((lo - 1)); fi
+  fi
+  echo "$lo"
 }
 
 echo "mlvq threshold = chroma-threshold = $threshold (other parameters default); fmf rgb, lpca 7 clusters"
@@ -39,7 +50,8 @@ echo
 echo "| material | codec | setting | package | ratio | encode | RMSE | MSSIM (Y) | BTF-CIELab mean ΔE00 |"
 echo "|---|---|---|---|---|---|---|---|---|"
 materials=()
-if [ -d "$real" ]; then materials+=("real:$real"); else echo "(real view absent: $real)" >&2; fi
+if [ "${REAL:-1}" = 0 ]; then :
+elif [ -d "$real" ]; then materials+=("real:$real"); else echo "(real view absent: $real)" >&2; fi
 for p in "${presets[@]}"; do materials+=("$p"); done
 for material in "${materials[@]}"; do
   if [[ $material == real:* ]]; then
