@@ -327,9 +327,9 @@ MlvqMaterial::MlvqMaterial(std::shared_ptr<const Codebooks> books, TexelIndex in
           m_decoded->size_m(), m_books->size_m());
 }
 
-// One query's ≤ 16 light functions: for each of 4 texels × 2 φv × 2 θv with a non-zero weight,
-// the M entry's samples, its luminance scale (weight · c_P6 · c_P4 · c_P3) and its chromaticity
-// weight, and the offsets and weights of the 2 × 2 (α, β) corners within an entry.
+// One query's 16 light functions: for each of 4 texels × 2 φv × 2 θv the M entry and its samples,
+// its luminance scale (weight · c_P6 · c_P4 · c_P3) and its chromaticity weight, and the offsets
+// and weights of the 2 × 2 (α, β) corners within an entry.
 struct MlvqMaterial::Gathered {
     int count = 0;
     uint32_t index[16];  ///< M entries
@@ -372,8 +372,8 @@ void MlvqMaterial::gather(const TexelCorners& corners, const MlvqWeights& w, Gat
     out.corners = DecodedBooks::Corners(d.grid(), w);
 }
 
-// Prefetches what gather() will read of P4 ∘ P3 for the texels of uv (their P6 entries must be
-// in cache or on their way: the pipeline of eval_batch prefetched them one stage earlier).
+// Prefetches what gather() will read of P4 ∘ P3 for the four texels (their P6 entries should be
+// in cache or on their way: the batch pipelines prefetch them one stage earlier).
 void MlvqMaterial::prefetch_views(const TexelCorners& corners, const MlvqWeights& w) const {
     const MlvqGrid& g = m_decoded->grid();
     for (int k = 0; k < 4; ++k) {
