@@ -70,6 +70,19 @@ inline Vec3 random_direction(std::mt19937_64& rng) {
     return Direction{theta, phi}.vector();
 }
 
+/// `count` queries with uniformly random uv in [0, 1)² and directions over the upper hemisphere
+/// (cos θ uniform), drawn from `rng` (which goes on from there).
+inline std::vector<Query> random_queries(size_t count, std::mt19937_64& rng) {
+    std::uniform_real_distribution<double> uni(0, 1);
+    std::vector<Query> queries(count);
+    for (Query& q : queries) {
+        q.uv = {uni(rng), uni(rng)};
+        q.wi = random_direction(rng);
+        q.wo = random_direction(rng);
+    }
+    return queries;
+}
+
 /// A field of /proc/self/status in bytes ("VmRSS", "VmHWM"); 0 where it cannot be read.
 inline int64_t proc_status_bytes(const std::string& field) {
     std::ifstream in("/proc/self/status");

@@ -79,13 +79,7 @@ int main(int argc, char** argv) {
         const Material& m = *material;
 
         std::mt19937_64 rng(7);
-        std::uniform_real_distribution<double> uni(0, 1);
-        std::vector<Query> random(count);
-        for (Query& q : random) {
-            q.uv = {uni(rng), uni(rng)};
-            q.wi = bench::random_direction(rng);
-            q.wo = bench::random_direction(rng);
-        }
+        const std::vector<Query> random = bench::random_queries(count, rng);
         constexpr int kImage = 512;
         const Vec3 wi = Direction::from_degrees(37, 65).vector();
         const Vec3 wo = Direction::from_degrees(22, 190).vector();

@@ -119,12 +119,7 @@ int main(int argc, char** argv) {
         }
         std::mt19937_64 rng(7);
         std::uniform_real_distribution<double> uni(0, 1);
-        std::vector<Query> random(count);
-        for (Query& q : random) {
-            q.uv = {uni(rng), uni(rng)};
-            q.wi = bench::random_direction(rng);
-            q.wo = bench::random_direction(rng);
-        }
+        const std::vector<Query> random = bench::random_queries(count, rng);
         float sink = 0;
         auto rate = [&](const Material& m) {
             const double t = bench::best_of(repeat, [&] {

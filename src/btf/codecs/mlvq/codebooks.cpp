@@ -216,38 +216,6 @@ class BitReader {
     int m_bit = 0;
 };
 
-// Linear scalar quantization of values to `bits` bits over [lo, hi].
-struct Linear {
-    float lo = 0, hi = 0;
-    int bits = 8;
-    static Linear fit(const float* v, size_t n, int bits) {
-        Linear q;
-        q.bits = bits;
-        if (n == 0) return q;
-        q.lo = *std::min_element(v, v + n);
-        q.hi = *std::max_element(v, v + n);
-        return q;
-    }
-    uint32_t max_code() const { return (1u << bits) - 1; }
-    uint32_t encode(float x) const {
-        if (!(hi > lo)) return 0;
-        const double t = (double(x) - lo) / (double(hi) - lo) * max_code();
-        return uint32_t(std::clamp(std::lround(t), 0l, long(max_code())));
-    }
-    float decode(uint32_t code) const {
-        if (!(hi > lo)) return lo;
-        return float(lo + (double(hi) - lo) * code / max_code());
-    }
-    nlohmann::json json() const { return {{"lo", lo}, {"hi", hi}, {"bits", bits}}; }
-    static Linear from(const nlohmann::json& j) {
-        Linear q{j.at("lo").get<float>(), j.at("hi").get<float>(), j.at("bits").get<int>()};
-        if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
-        if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
-            fail("quantization range [{}, {}]", q.lo, q.hi);
-        return q;
-    }
-};
-
 // Scales are ratios spanning decades (a dark slice next to a bright one): quantized on a log
 // scale between the smallest positive and the largest value; code 0 is an exact 0.
 struct Logarithmic {
@@ -339,14 +307,14 @@ PackageSection section(std::string name, std::vector<uint8_t> data) {
 void write_codebooks(const Codebooks& b, bool hdr, nlohmann::json& header,
                      std::vector<PackageSection>& sections) {
     b.validate("mlvq code-books");
-    const Linear qp1 = Linear::fit(b.p1.data(), b.p1.size(), 8);
+    const LinearQuantizer qp1 = LinearQuantizer::fit(b.p1.data(), b.p1.size(), 8);
     std::vector<float> c0, c1;
     for (const auto& e : b.c) {
         c0.push_back(e[0]);
         c1.push_back(e[1]);
     }
-    const Linear qc0 = Linear::fit(c0.data(), c0.size(), 8);
-    const Linear qc1 = Linear::fit(c1.data(), c1.size(), 8);
+    const LinearQuantizer qc0 = LinearQuantizer::fit(c0.data(), c0.size(), 8);
+    const LinearQuantizer qc1 = LinearQuantizer::fit(c1.data(), c1.size(), 8);
     const Logarithmic q2 = Logarithmic::fit(b.p2, hdr ? 16 : 8);
     const Logarithmic q3 = Logarithmic::fit(b.p3, 8);
     const Logarithmic q4 = Logarithmic::fit(b.p4, 8);
@@ -402,8 +370,9 @@ Codebooks read_codebooks(const Package& package) {
     const size_t s1 = size("P1"), s2 = size("P2"), sm = size("M"), s3 = size("P3"), s4 = size("P4"),
                  sc = size("C"), si1 = size("I1"), si2 = size("I2");
     const nlohmann::json& q = h.at("quantization");
-    const Linear qp1 = Linear::from(q.at("P1")), qc0 = Linear::from(q.at("C0")),
-                 qc1 = Linear::from(q.at("C1"));
+    const LinearQuantizer qp1 = LinearQuantizer::from(q.at("P1")),
+                          qc0 = LinearQuantizer::from(q.at("C0")),
+                          qc1 = LinearQuantizer::from(q.at("C1"));
     const Logarithmic q2 = Logarithmic::from(q.at("P2")), q3 = Logarithmic::from(q.at("P3")),
                       q4 = Logarithmic::from(q.at("P4"));
     const PackageSection* s = package.find("codebooks");

@@ -33,7 +33,9 @@
 /// storage encoding of Y that the scalar quantization of the scales replaces (16-bit P2 scales
 /// for HDR, §4.5).
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <tuple>
@@ -42,6 +44,7 @@
 #include "btf/codecs/mlvq/parametrization.h"
 #include "btf/core/math.h"
 #include "btf/io/package.h"
+#include "btf/util/error.h"
 
 namespace btf::mlvq {
 
@@ -101,6 +104,40 @@ struct TexelIndex {
     Sampling sampling;
     bool hdr = false;
     std::vector<IndexScale> p6;
+};
+
+/// Linear scalar quantization to `bits` bits over [lo, hi] (§4.5): how a package stores P1 and C
+/// values, and the codes the evaluator keeps for C.
+struct LinearQuantizer {
+    float lo = 0, hi = 0;
+    int bits = 8;
+    static LinearQuantizer fit(const float* v, size_t n, int bits) {
+        LinearQuantizer q;
+        q.bits = bits;
+        if (n == 0) return q;
+        q.lo = *std::min_element(v, v + n);
+        q.hi = *std::max_element(v, v + n);
+        return q;
+    }
+    uint32_t max_code() const { return (1u << bits) - 1; }
+    uint32_t encode(float x) const {
+        if (!(hi > lo)) return 0;
+        const double t = (double(x) - lo) / (double(hi) - lo) * max_code();
+        return uint32_t(std::clamp(std::lround(t), 0l, long(max_code())));
+    }
+    float decode(uint32_t code) const {
+        if (!(hi > lo)) return lo;
+        return float(lo + (double(hi) - lo) * code / max_code());
+    }
+    nlohmann::json json() const { return {{"lo", lo}, {"hi", hi}, {"bits", bits}}; }
+    static LinearQuantizer from(const nlohmann::json& j) {
+        LinearQuantizer q{j.at("lo").get<float>(), j.at("hi").get<float>(),
+                          j.at("bits").get<int>()};
+        if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
+        if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
+            fail("quantization range [{}, {}]", q.lo, q.hi);
+        return q;
+    }
 };
 
 /// Bytes of the code-books and the P6 of `texels` texels in the four representations of the

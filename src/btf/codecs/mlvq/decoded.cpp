@@ -33,20 +33,12 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     // C's codes: 8 bits per channel over its range, as write_codebooks() quantizes it.
     std::vector<std::array<uint8_t, 2>> codes(b.size_c());
     for (int ch = 0; ch < 2; ++ch) {
-        float lo = 0, hi = 0;
-        if (!b.c.empty()) {
-            lo = hi = b.c[0][ch];
-            for (const auto& e : b.c) {
-                lo = std::min(lo, e[ch]);
-                hi = std::max(hi, e[ch]);
-            }
-        }
-        m_chroma_lo[ch] = lo;
-        m_chroma_step[ch] = (hi - lo) / 255;
-        for (size_t i = 0; i < b.size_c(); ++i)
-            codes[i][ch] =
-                hi > lo ? uint8_t(std::lround((double(b.c[i][ch]) - lo) / (double(hi) - lo) * 255))
-                        : 0;
+        std::vector<float> values(b.size_c());
+        for (size_t i = 0; i < b.size_c(); ++i) values[i] = b.c[i][ch];
+        const LinearQuantizer q = LinearQuantizer::fit(values.data(), values.size(), 8);
+        m_chroma_lo[ch] = q.lo;
+        m_chroma_step[ch] = (q.hi - q.lo) / float(q.max_code());
+        for (size_t i = 0; i < b.size_c(); ++i) codes[i][ch] = uint8_t(q.encode(values[i]));
     }
 
     // M entries: luminance c_P2 · P1 and chromaticity I2 → I1 → C per (α, β) sample.

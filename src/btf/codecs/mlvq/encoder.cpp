@@ -28,6 +28,13 @@ double sum(const float* v, size_t n) {
     return s;
 }
 
+// The two chromaticity planes of n samples one after the other: a chroma code-vector.
+std::vector<float> planes_of(const float* c1, const float* c2, size_t n) {
+    std::vector<float> v(c1, c1 + n);
+    v.insert(v.end(), c2, c2 + n);
+    return v;
+}
+
 }  // namespace
 
 Encoder::Encoder(const EncoderOptions& o)
@@ -175,10 +182,7 @@ uint32_t Encoder::p1(const float* y) {
 uint32_t Encoder::i2(const float* c1, const float* c2) {
     const MlvqGrid& g = m_options.grid;
     const size_t nb = size_t(g.n_beta), n2 = nb * g.n_alpha;
-    std::vector<float> query(2 * n2);
-    std::copy(c1, c1 + n2, query.begin());
-    std::copy(c2, c2 + n2, query.begin() + n2);
-    const Match found = m_i2.find(query);
+    const Match found = m_i2.find(planes_of(c1, c2, n2));
     if (found) return found.index;
     std::vector<float> recon(2 * n2);
     for (int i = 0; i < g.n_alpha; ++i) {
@@ -195,10 +199,7 @@ uint32_t Encoder::i2(const float* c1, const float* c2) {
 
 uint32_t Encoder::i1(const float* c1, const float* c2) {
     const size_t nb = size_t(m_options.grid.n_beta);
-    std::vector<float> query(2 * nb);
-    std::copy(c1, c1 + nb, query.begin());
-    std::copy(c2, c2 + nb, query.begin() + nb);
-    const Match found = m_i1.find(query);
+    const Match found = m_i1.find(planes_of(c1, c2, nb));
     if (found) return found.index;
     std::vector<float> recon(2 * nb);
     for (size_t j = 0; j < nb; ++j) {
