@@ -49,6 +49,27 @@ inline double best_of(int repeat, const std::function<void()>& fn) {
     return best;
 }
 
+/// Loads of single random 64-byte lines per second from a buffer of `bytes` bytes, one thread,
+/// with the addresses known ahead (independent loads, prefetched 64 ahead): the most random lines
+/// per second that code reading that much memory at random places can get on this machine.
+inline double random_line_rate(size_t bytes, int repeat) {
+    const size_t lines = std::max<size_t>(bytes / 64, 1);
+    std::vector<uint64_t> data(lines * 8, 1);
+    constexpr size_t kLoads = size_t(1) << 23, kAhead = 64;
+    std::vector<uint32_t> index(kLoads + kAhead);
+    std::mt19937_64 rng(11);
+    for (uint32_t& i : index) i = uint32_t(rng() % lines);
+    uint64_t sum = 0;
+    const double t = best_of(repeat, [&] {
+        for (size_t i = 0; i < kLoads; ++i) {
+            __builtin_prefetch(&data[size_t(index[i + kAhead]) * 8]);
+            sum += data[size_t(index[i]) * 8];
+        }
+    });
+    if (sum == 0) std::fprintf(stderr, "(no loads)\n");  // keeps the loads
+    return double(kLoads) / t;
+}
+
 /// The queries of a size × size image of a plane seen under one light and one view: texel-centre
 /// uv in row order, all with the same directions (coherent evaluation).
 inline std::vector<Query> image_queries(int size, const Vec3& wi, const Vec3& wo) {

@@ -88,6 +88,27 @@ std::pair<std::unique_ptr<Material>, std::unique_ptr<Material>> encode_and_repor
     return {std::move(material), std::move(fmf)};
 }
 
+// The most random queries per second the machine's memory allows the decoded entries: a query
+// reads 16 entries (4 texels × 2 θv × 2 φv) at unrelated places, 8 bytes from each of two α rows
+// n_β samples apart, and this machine loads only so many random lines per second from a buffer
+// that large (bench::random_line_rate). The views and P6 are not counted: an upper bound.
+void print_memory_ceiling(const mlvq::DecodedBooks& decoded, int repeat) {
+    const size_t row = sizeof(mlvq::DecodedBooks::Sample) * size_t(decoded.grid().n_beta);
+    double lines = 0;  // mean over the 4-byte aligned offsets within a line
+    for (size_t s = 0; s < 64; s += 4) {
+        const size_t first[2] = {s / 64, (s + row) / 64},
+                     last[2] = {(s + 7) / 64, (s + row + 7) / 64};
+        lines += double(last[0] - first[0] + 1 + last[1] - first[1] + 1) -
+                 (first[1] <= last[0] ? double(last[0] - first[1] + 1) : 0.0);
+    }
+    lines /= 16;
+    const double rate = bench::random_line_rate(decoded.entry_bytes(), repeat);
+    std::printf(
+        "| memory ceiling: %.1f M random 64-byte lines/s from %.0f MB (the decoded entries), "
+        "%.2f lines per entry × 16 | at most %.2f M/s | |\n",
+        rate / 1e6, double(decoded.entry_bytes()) / 1e6, lines, rate / (16 * lines) / 1e6);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -152,6 +173,7 @@ int main(int argc, char** argv) {
                     b_fmf / 1e6);
         std::printf("| 512² image, one light and view, eval_batch() | %.2f M/s | %.2f M/s |\n",
                     i_mlvq / 1e6, i_fmf / 1e6);
+        print_memory_ceiling(dynamic_cast<const mlvq::MlvqMaterial&>(*material).decoded(), repeat);
 
         // Importance sampling: random uv, ωo and ξ, one thread; mlvq's native sampler (§5.2)
         // against the generic tabulated sampler on the same mlvq material and on fmf (tables

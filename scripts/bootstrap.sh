@@ -13,6 +13,7 @@ packages=(
   libqhull-dev
   libkissfft-dev
   libtbb-dev
+  libembree-dev libtinyobjloader-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev
   libxxhash-dev libzstd-dev libdeflate-dev
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev

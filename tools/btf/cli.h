@@ -93,5 +93,6 @@ Command register_decompress(CLI::App& app, GlobalOptions& global);
 Command register_eval(CLI::App& app, GlobalOptions& global);
 Command register_quality(CLI::App& app, GlobalOptions& global);
 Command register_report(CLI::App& app, GlobalOptions& global);
+Command register_render(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli

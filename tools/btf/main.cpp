@@ -63,8 +63,8 @@ int main(int argc, char** argv) {
         register_synth(app, global),    register_slice(app, global),
         register_compress(app, global), register_decompress(app, global),
         register_eval(app, global),     register_quality(app, global),
-        register_report(app, global),   register_codecs(app, global),
-        register_formats(app, global),
+        register_report(app, global),   register_render(app, global),
+        register_codecs(app, global),   register_formats(app, global),
     };
 
     try {

@@ -70,6 +70,9 @@ class DecodedBooks {
         return m_rows.data() + size_t(m) * (size_t(m_grid.n_alpha) + 1);
     }
     size_t size_m() const { return m_per_entry ? m_samples.size() / m_per_entry : 0; }
+    /// Bytes of the decoded entries and of the fused views.
+    size_t entry_bytes() const { return m_samples.size() * sizeof(Sample); }
+    size_t view_bytes() const { return m_views.size() * sizeof(IndexScale); }
 
     static float luminance(const Sample& s) {
 #ifdef __F16C__

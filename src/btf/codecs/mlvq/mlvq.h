@@ -105,6 +105,7 @@ class MlvqMaterial final : public Material {
 
     const Codebooks& codebooks() const { return *m_books; }
     const TexelIndex& texel_index() const { return m_index; }
+    const DecodedBooks& decoded() const { return *m_decoded; }
     /// Planes (Y, c₁, c₂) of texel (x, y) at the lookup weights w.
     std::array<float, 3> planes(int64_t texel, const MlvqWeights& w) const;
 

@@ -1,0 +1,91 @@
+#pragma once
+/// What a renderer's surface hit reflects: a BTF material (any codec's Material, with its own
+/// importance sampling) or one of two simple analytic fallbacks for objects that have no measured
+/// material (diffuse, rough conductor).
+///
+/// All directions are in the local shading frame (z = shading normal, x = tangent along +u) and
+/// every value follows the BTF convention of btf/core/material.h: value = π · f_r · cos θi, so a
+/// Lambertian surface of albedo ρ has value ρ · cos θi and the reflected radiance under incident
+/// radiance L_i is ∫ L_i · value / π dωi.
+
+#include <memory>
+
+#include "btf/core/material.h"
+#include "btf/core/math.h"
+
+namespace btf::render {
+
+/// How a surface picks light directions when the path tracer extends a path.
+enum class SamplingMode {
+    kMaterial,  ///< the material's own sample() (BTF importance sampling)
+    kCosine,    ///< cosine-weighted hemisphere sampling (the baseline BTF sampling is measured
+                ///< against)
+};
+
+class Surface {
+  public:
+    virtual ~Surface() = default;
+    /// value(uv, wi, wo); black when either direction is below the horizon.
+    virtual Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const = 0;
+    /// A light direction for (uv, wo) from (xi1, xi2) with its pdf per solid angle, value and
+    /// value / pdf.
+    virtual LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const = 0;
+    /// The density sample() draws `wi` with.
+    virtual double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const = 0;
+    /// Directional albedo (1/π) ∫ value dωi, for the albedo AOV.
+    virtual Rgb albedo(const Uv& uv, const Vec3& wo) const = 0;
+};
+
+/// A BTF material. uv wraps (the material tiles); the object's uv scale and rotation are applied
+/// by the renderer before the lookup.
+class BtfSurface final : public Surface {
+  public:
+    BtfSurface(std::shared_ptr<const Material> material,
+               SamplingMode mode = SamplingMode::kMaterial)
+        : m_material(std::move(material)), m_mode(mode) {}
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
+    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
+    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
+    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+    const Material& material() const { return *m_material; }
+
+  private:
+    std::shared_ptr<const Material> m_material;
+    SamplingMode m_mode;
+};
+
+/// Lambertian reflection of albedo ρ: value = ρ · cos θi, cosine-weighted sampling (exact).
+class DiffuseSurface final : public Surface {
+  public:
+    explicit DiffuseSurface(const Rgb& albedo) : m_albedo(albedo) {}
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
+    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
+    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
+    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+
+  private:
+    Rgb m_albedo;
+};
+
+/// A rough metal: the GGX microfacet model with Smith's height-correlated shadowing and Schlick's
+/// Fresnel from the normal-incidence reflectance F0 (per channel); sampled by the GGX normal
+/// distribution. `roughness` is GGX α, clamped to ≥ 0.02 (smoother surfaces are mirrors, which
+/// this renderer does not model).
+class ConductorSurface final : public Surface {
+  public:
+    ConductorSurface(const Rgb& f0, double roughness);
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
+    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
+    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
+    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+
+  private:
+    Rgb m_f0;
+    double m_alpha;
+};
+
+/// Cosine-weighted direction on the upper hemisphere from (xi1, xi2) (concentric disk mapping);
+/// its pdf is cos θ / π.
+Vec3 cosine_direction(double xi1, double xi2);
+
+}  // namespace btf::render

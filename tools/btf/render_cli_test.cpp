@@ -1,0 +1,97 @@
+// End-to-end tests of `btf render`: a scene with a compressed material renders to PNG and EXR;
+// bad scenes give one line, a non-zero exit and no image.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "btf/core/image.h"
+#include "btf/testing/cli.h"
+
+namespace btf {
+namespace {
+
+namespace fs = std::filesystem;
+using test::CliResult;
+using test::run;
+
+class RenderCli : public testing::Test {
+  protected:
+    static void SetUpTestSuite() {
+        s_dir = fs::path(testing::TempDir()) / ("render_cli_test_" + std::to_string(::getpid()));
+        fs::remove_all(s_dir);
+        fs::create_directories(s_dir);
+    }
+    static void TearDownTestSuite() { fs::remove_all(s_dir); }
+    static std::string path(const std::string& name) { return (s_dir / name).string(); }
+    static void write(const std::string& name, const std::string& text) {
+        std::ofstream(path(name)) << text;
+    }
+    static fs::path s_dir;
+};
+fs::path RenderCli::s_dir;
+
+TEST_F(RenderCli, RendersACompressedMaterialOnShapes) {
+    ASSERT_EQ(run("synth --preset leather --size 8 -o " + path("m.h5")).code, 0);
+    CliResult r =
+        run("compress " + path("m.h5") + " --codec fmf --components 4 -o " + path("m.btfpkg"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    write("scene.json", R"({
+      "camera": {"position": [0, 1, 3], "look_at": [0, 0.3, 0], "fov": 40, "width": 32, "height": 24},
+      "render": {"integrator": "direct", "spp": 2},
+      "objects": [
+        {"shape": "sphere", "radius": 0.4, "position": [-0.5, 0.4, 0], "uv_scale": 2,
+         "material": {"type": "btf", "file": "m.btfpkg"}},
+        {"shape": "cylinder", "radius": 0.3, "height": 0.8, "position": [0.5, 0.4, 0],
+         "material": {"type": "btf", "file": "m.btfpkg"}},
+        {"shape": "plane", "width": 4, "depth": 4, "material": {"type": "diffuse"}}
+      ],
+      "lights": [{"type": "environment", "sky": {"width": 64}}]
+    })");
+    r = run("--quiet render " + path("scene.json") + " -o " + path("out.png") + " --aov");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const Image png = read_image(path("out.png"));
+    EXPECT_EQ(png.width(), 32);
+    EXPECT_EQ(png.height(), 24);
+    EXPECT_GT(*std::max_element(png.values().begin(), png.values().end()), 0.05f);
+    for (const char* aov : {"out.albedo.exr", "out.normal.exr", "out.uv.exr"})
+        EXPECT_TRUE(fs::exists(path(aov))) << aov;
+
+    r = run("--quiet render " + path("scene.json") + " -o " + path("out.exr") +
+            " --integrator path --spp 1 --size 16,12");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const Image exr = read_image(path("out.exr"));
+    EXPECT_EQ(exr.width(), 16);
+    EXPECT_EQ(exr.height(), 12);
+}
+
+TEST_F(RenderCli, BadScenesGiveOneLineAndNoImage) {
+    write("typo.json", R"({"camera": {}, "objects": [{"shape": "sphere", "radius": 1,
+      "material": {"type": "diffuse", "albedoo": 0.5}}]})");
+    CliResult r = run("render " + path("typo.json") + " -o " + path("typo.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("typo.json: objects[0].material: unknown key \"albedoo\""),
+              std::string::npos)
+        << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(path("typo.png")));
+
+    write("nofile.json", R"({"camera": {}, "objects": [{"shape": "plane",
+      "material": {"type": "btf", "file": "absent.btfpkg"}}]})");
+    r = run("render " + path("nofile.json") + " -o " + path("nofile.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("absent.btfpkg: no such file"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(path("nofile.png")));
+
+    r = run("render " + path("missing.json") + " -o " + path("m.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("missing.json: cannot open the scene file"), std::string::npos)
+        << r.output;
+}
+
+}  // namespace
+}  // namespace btf
