@@ -2,23 +2,137 @@
 // tracer; the command line overrides the scene's "render" block.
 
 #include <cstdio>
+#include <fstream>
 
+#include <nlohmann/json.hpp>
+
+#include "btf/core/image.h"
+#include "btf/render/compare.h"
 #include "btf/render/renderer.h"
 #include "btf/render/scene_file.h"
+#include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
 #include "cli.h"
 
 namespace btf::cli {
 
-Command register_render(CLI::App& app, GlobalOptions& global) {
-    struct Args {
-        std::string scene, output, integrator, sampling = "material", size;
-        int spp = -1, max_depth = -1;
-        double time = -1, exposure = NAN;
-        int64_t seed = -1;
-        bool aovs = false;
+namespace {
+
+struct RenderArgs {
+    std::string scene, output, integrator, sampling = "material", size;
+    int spp = -1, max_depth = -1;
+    double time = -1, exposure = NAN;
+    int64_t seed = -1;
+    bool aovs = false;
+    std::vector<std::string> compare;
+};
+
+struct RenderSetup {
+    render::RenderOptions options;
+    double exposure = 0;
+};
+
+// The scene's "render" block with the command line's overrides applied.
+RenderSetup setup_render(const RenderArgs& args, render::LoadedScene& loaded) {
+    render::RenderOptions options = loaded.settings.options;
+    if (args.integrator == "direct") options.integrator.max_depth = 1;
+    if (args.integrator == "path" && options.integrator.max_depth == 1)
+        options.integrator.max_depth = 8;
+    if (args.max_depth > 0) {
+        if (options.integrator.max_depth == 1 && args.integrator != "path")
+            fail("--max-depth applies to the path integrator");
+        options.integrator.max_depth = args.max_depth;
+    }
+    if (args.spp >= 0) options.spp = args.spp;
+    if (args.time >= 0) options.time_limit = args.time;
+    if (args.spp == 0 && options.time_limit <= 0) fail("--spp 0 needs --time");
+    if (args.seed >= 0) options.seed = uint64_t(args.seed);
+    if (!args.size.empty()) {
+        const auto [w, h] = parse_pair(args.size, "--size");
+        if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
+            fail("--size {}: width and height must be 1 to 16384", args.size);
+        loaded.scene.camera.width = w;
+        loaded.scene.camera.height = h;
+    }
+    options.aovs = args.aovs;
+    return {options, std::isnan(args.exposure) ? loaded.settings.exposure : args.exposure};
+}
+
+void print_result(const std::string& name, const render::RenderResult& result) {
+    std::printf("%s: %d × %d, %d samples per pixel, %.1f s (%.2f M paths/s)\n", name.c_str(),
+                result.color.width(), result.color.height(), result.spp, result.seconds,
+                double(result.paths()) / result.seconds / 1e6);
+}
+
+// <stem><suffix> beside `output`.
+std::string sibling(const std::string& output, const std::string& suffix) {
+    const std::filesystem::path p(output);
+    return ((p.parent_path() / p.stem()).string() + suffix);
+}
+
+void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalOptions& global) {
+    const OutputKind kind = output_kind(args.output);
+    const std::string ext = lower_extension(args.output);
+    if (kind != OutputKind::kOther || ext == ".exr" || ext == ".hdr")
+        fail("{}: --compare writes a picture: give a .png or .jpg output", args.output);
+    if (args.aovs) fail("--aov does not apply to --compare");
+    std::shared_ptr<const Material> materials[2];
+    for (int i = 0; i < 2; ++i) materials[i] = render::open_material_file(args.compare[size_t(i)]);
+    render::RenderResult results[2];
+    RenderSetup setup;
+    for (int i = 0; i < 2; ++i) {
+        load.btf_override = materials[i];
+        render::LoadedScene loaded = render::load_scene(args.scene, load);
+        if (loaded.btf_objects == 0)
+            fail("{}: --compare needs an object with a \"btf\" material", args.scene);
+        setup = setup_render(args, loaded);
+        Progress progress = make_progress(global);
+        results[i] = render::render(loaded.scene, setup.options, progress);
+        if (!global.quiet) print_result(args.compare[size_t(i)], results[i]);
+    }
+    if (results[0].spp != results[1].spp)
+        fail(
+            "--compare: the renders reached {} and {} samples per pixel within --time; give "
+            "--spp for equal noise",
+            results[0].spp, results[1].spp);
+    const render::RenderComparison c =
+        render::compare_renders(results[0].color, results[1].color, setup.exposure);
+    const Image a = render::tone_map(results[0].color, setup.exposure);
+    const Image b = render::tone_map(results[1].color, setup.exposure);
+    write_image(sibling(args.output, ".a" + ext), a);
+    write_image(sibling(args.output, ".b" + ext), b);
+    write_image(sibling(args.output, ".diff" + ext), c.heat_map);
+    nlohmann::json metrics = {
+        {"a", args.compare[0]},
+        {"b", args.compare[1]},
+        {"scene", args.scene},
+        {"spp", results[0].spp},
+        {"exposure", setup.exposure},
+        {"de2000_mean", c.de2000_mean},
+        {"de2000_p95", c.de2000_p95},
+        {"ssim", c.ssim},
+        {"psnr_db", std::isfinite(c.psnr) ? nlohmann::json(c.psnr) : nlohmann::json(nullptr)},
+        {"heat_map_max", c.heat_max},
     };
-    auto args = std::make_shared<Args>();
+    AtomicOutput json_out(sibling(args.output, ".json"));
+    {
+        std::ofstream out(json_out.temp_path());
+        out << metrics.dump(2) << "\n";
+        if (!out) fail("{}: cannot write", json_out.destination().string());
+    }
+    json_out.commit();
+    write_image(args.output, render::side_by_side(a, b, c.heat_map));
+    std::printf(
+        "A: %s\nB: %s\nΔE00 mean %.3f, 95th percentile %.3f; SSIM %.4f; PSNR %.2f dB\n"
+        "%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n",
+        args.compare[0].c_str(), args.compare[1].c_str(), c.de2000_mean, c.de2000_p95, c.ssim,
+        c.psnr, args.output.c_str(), c.heat_max);
+}
+
+}  // namespace
+
+Command register_render(CLI::App& app, GlobalOptions& global) {
+    auto args = std::make_shared<RenderArgs>();
     CLI::App* cmd = app.add_subcommand(
         "render",
         "Render a scene (JSON, see docs/scenes.md) with BTF materials: path tracing on "
@@ -46,43 +160,27 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
         ->check(CLI::IsMember({"material", "cosine"}));
     cmd->add_flag("--aov", args->aovs,
                   "also write <out>.albedo.exr, <out>.normal.exr, <out>.uv.exr");
+    cmd->add_option("--compare", args->compare,
+                    "render the scene twice, every BTF material replaced by A, then by B (any "
+                    "package, .btf or raw BTF), and write A | B | ΔE00 heat map to the output, "
+                    "<out>.a.png, <out>.b.png, <out>.diff.png and the metrics in <out>.json")
+        ->expected(2);
 
     return {cmd, [args, &global] {
                 render::LoadOptions load;
                 load.sampling = args->sampling == "cosine" ? render::SamplingMode::kCosine
                                                            : render::SamplingMode::kMaterial;
-                render::LoadedScene loaded = render::load_scene(args->scene, load);
-                render::RenderOptions options = loaded.settings.options;
-                if (args->integrator == "direct") options.integrator.max_depth = 1;
-                if (args->integrator == "path" && options.integrator.max_depth == 1)
-                    options.integrator.max_depth = 8;
-                if (args->max_depth > 0) {
-                    if (options.integrator.max_depth == 1 && args->integrator != "path")
-                        fail("--max-depth applies to the path integrator");
-                    options.integrator.max_depth = args->max_depth;
+                if (args->compare.empty()) {
+                    render::LoadedScene loaded = render::load_scene(args->scene, load);
+                    const RenderSetup setup = setup_render(*args, loaded);
+                    Progress progress = make_progress(global);
+                    const render::RenderResult result =
+                        render::render(loaded.scene, setup.options, progress);
+                    render::write_render(args->output, result, setup.exposure);
+                    if (!global.quiet) print_result(args->output, result);
+                    return;
                 }
-                if (args->spp >= 0) options.spp = args->spp;
-                if (args->time >= 0) options.time_limit = args->time;
-                if (args->spp == 0 && options.time_limit <= 0) fail("--spp 0 needs --time");
-                if (args->seed >= 0) options.seed = uint64_t(args->seed);
-                if (!args->size.empty()) {
-                    const auto [w, h] = parse_pair(args->size, "--size");
-                    if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
-                        fail("--size {}: width and height must be 1 to 16384", args->size);
-                    loaded.scene.camera.width = w;
-                    loaded.scene.camera.height = h;
-                }
-                options.aovs = args->aovs;
-                const double exposure =
-                    std::isnan(args->exposure) ? loaded.settings.exposure : args->exposure;
-                Progress progress = make_progress(global);
-                const render::RenderResult result = render::render(loaded.scene, options, progress);
-                render::write_render(args->output, result, exposure);
-                if (!global.quiet)
-                    std::printf("%s: %d × %d, %d samples per pixel, %.1f s (%.2f M paths/s)\n",
-                                args->output.c_str(), result.color.width(), result.color.height(),
-                                result.spp, result.seconds,
-                                double(result.paths()) / result.seconds / 1e6);
+                run_compare(*args, load, global);
             }};
 }
 

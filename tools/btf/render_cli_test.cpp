@@ -69,6 +69,40 @@ TEST_F(RenderCli, RendersACompressedMaterialOnShapes) {
     EXPECT_EQ(exr.height(), 12);
 }
 
+TEST_F(RenderCli, CompareRendersTwoVersionsOfAMaterial) {
+    ASSERT_EQ(run("synth --preset brushed_metal --size 8 -o " + path("c.h5")).code, 0);
+    ASSERT_EQ(
+        run("compress " + path("c.h5") + " --codec fmf --components 1 -o " + path("c1.btfpkg"))
+            .code,
+        0);
+    write("cmp.json", R"({
+      "camera": {"position": [0, 1, 3], "look_at": [0, 0.3, 0], "width": 24, "height": 16},
+      "render": {"integrator": "direct", "spp": 2},
+      "objects": [{"shape": "sphere", "radius": 0.5, "position": [0, 0.4, 0],
+                   "material": {"type": "btf", "file": "unused-when-comparing.btfpkg"}}],
+      "lights": [{"type": "directional", "direction": [1, 2, 1], "irradiance": 3}]
+    })");
+    // The same material twice: identical renders.
+    CliResult r = run("--quiet render " + path("cmp.json") + " --compare " + path("c1.btfpkg") +
+                      " " + path("c1.btfpkg") + " -o " + path("same.png"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("ΔE00 mean 0.000"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("SSIM 1.0000"), std::string::npos) << r.output;
+    // Raw data against one component: visibly different.
+    r = run("--quiet render " + path("cmp.json") + " --compare " + path("c.h5") + " " +
+            path("c1.btfpkg") + " -o " + path("cmp.png"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(r.output.find("ΔE00 mean 0.000"), std::string::npos) << r.output;
+    for (const char* f : {"cmp.png", "cmp.a.png", "cmp.b.png", "cmp.diff.png", "cmp.json"})
+        EXPECT_TRUE(fs::exists(path(f))) << f;
+    EXPECT_EQ(read_image(path("cmp.png")).width(), 3 * 24 + 8);
+
+    r = run("render " + path("cmp.json") + " --compare " + path("c.h5") + " " + path("c1.btfpkg") +
+            " -o " + path("cmp.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("--compare writes a picture"), std::string::npos) << r.output;
+}
+
 TEST_F(RenderCli, BadScenesGiveOneLineAndNoImage) {
     write("typo.json", R"({"camera": {}, "objects": [{"shape": "sphere", "radius": 1,
       "material": {"type": "diffuse", "albedoo": 0.5}}]})");

@@ -11,6 +11,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/io/package.h"
+#include "btf/io/sampled_material.h"
 #include "btf/io/ubo2014.h"
 #include "btf/util/error.h"
 
@@ -22,9 +23,7 @@ std::shared_ptr<const Material> open_material_file(const std::filesystem::path& 
     if (!std::filesystem::exists(path)) throw Error(path.string() + ": no such file");
     if (probe_package(path)) return open_material(path);
     if (ubo2014::probe(path)) return ubo2014::open_material(path);
-    throw Error(path.string() +
-                ": not a btfkit package or UBO2014 .btf file (compress other formats with "
-                "`btf compress` first)");
+    return open_sampled_material(path);  // raw data; errors name the file
 }
 
 namespace {
@@ -132,11 +131,13 @@ class SceneReader {
         LoadedScene out;
         read_camera(top.child("camera"), out.scene.camera);
         if (top.has("render")) read_render(top.child("render"), out.settings);
+        if (!top.has("objects")) top.fail("\"objects\" is required");
         if (!top.raw().at("objects").is_array()) top.fail("\"objects\" must be an array");
         const json& objects = top.raw().at("objects");
         for (size_t i = 0; i < objects.size(); ++i)
             out.scene.add_object(
                 read_object(Node(objects[i], fmt::format("objects[{}]", i), m_name)));
+        out.btf_objects = m_btf_objects;
         if (top.has("lights")) {
             const json& lights = top.raw().at("lights");
             if (!lights.is_array()) top.fail("\"lights\" must be an array");
@@ -190,6 +191,7 @@ class SceneReader {
         const std::string type = n.required_string("type");
         if (type == "btf") {
             n.allow({"type", "file"});
+            ++m_btf_objects;
             const std::filesystem::path file = resolve(n.required_string("file"));
             std::shared_ptr<const Material> material = m_options.btf_override;
             if (!material) {
@@ -338,6 +340,7 @@ class SceneReader {
     std::filesystem::path m_base;
     const LoadOptions& m_options;
     std::map<std::string, std::shared_ptr<const Material>> m_materials;
+    int m_btf_objects = 0;
 };
 
 }  // namespace

@@ -32,6 +32,7 @@ struct LoadOptions {
 struct LoadedScene {
     Scene scene;
     SceneSettings settings;
+    int btf_objects = 0;  ///< objects whose material is a BTF file
 };
 
 /// Reads, validates and commits a scene.
@@ -41,8 +42,9 @@ LoadedScene load_scene(const std::filesystem::path& path, const LoadOptions& opt
 LoadedScene parse_scene(const std::string& json, const std::string& name,
                         const std::filesystem::path& base, const LoadOptions& options = {});
 
-/// Opens a material file for rendering: a btfkit package or a UBO2014 .btf file. Throws
-/// btf::Error naming the file.
+/// Opens a material file for rendering: a btfkit package, a UBO2014 .btf file (its
+/// factorization), or any raw BTF a reader recognizes (held in memory uncompressed:
+/// SampledMaterial). Throws btf::Error naming the file.
 std::shared_ptr<const Material> open_material_file(const std::filesystem::path& path);
 
 }  // namespace btf::render

@@ -1,0 +1,67 @@
+#include "btf/render/compare.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "btf/core/color.h"
+#include "btf/quality/colormap.h"
+#include "btf/quality/metrics.h"
+#include "btf/render/renderer.h"
+#include "btf/util/error.h"
+
+namespace btf::render {
+
+namespace {
+
+double percentile(std::vector<float> values, double q) {
+    if (values.empty()) return 0;
+    const size_t k = std::min(values.size() - 1, size_t(q * double(values.size())));
+    std::nth_element(values.begin(), values.begin() + ptrdiff_t(k), values.end());
+    return values[k];
+}
+
+}  // namespace
+
+RenderComparison compare_renders(const Image& a, const Image& b, double exposure, double heat_max) {
+    if (a.width() != b.width() || a.height() != b.height())
+        throw Error("compare_renders: the images differ in size");
+    const Image ta = tone_map(a, exposure), tb = tone_map(b, exposure);
+    const int64_t n = ta.num_pixels();
+    const size_t count = static_cast<size_t>(n);
+    std::vector<float> de(count), ya(count), yb(count);
+    double squared = 0;
+    for (int64_t i = 0; i < n; ++i) {
+        const int x = int(i % ta.width()), y = int(i / ta.width());
+        const Rgb ca = ta.rgb(x, y), cb = tb.rgb(x, y);
+        de[size_t(i)] = float(quality::ciede2000(rgb_to_lab(ca), rgb_to_lab(cb)));
+        ya[size_t(i)] = linear_to_srgb(luminance(ca));
+        yb[size_t(i)] = linear_to_srgb(luminance(cb));
+        const float dr = ca.r - cb.r, dg = ca.g - cb.g, db = ca.b - cb.b;
+        squared += double(dr) * dr + double(dg) * dg + double(db) * db;
+    }
+    RenderComparison r;
+    double sum = 0;
+    for (float d : de) sum += d;
+    r.de2000_mean = n ? sum / double(n) : 0;
+    r.de2000_p95 = percentile(de, 0.95);
+    r.ssim = quality::mssim(ya.data(), yb.data(), ta.width(), ta.height());
+    const double mse = n ? squared / (3.0 * double(n)) : 0;
+    r.psnr = mse > 0 ? 10 * std::log10(1 / mse) : INFINITY;
+    r.heat_max = heat_max > 0 ? heat_max : quality::nice_ceil(std::max(1.0, percentile(de, 0.99)));
+    r.heat_map = quality::heat_map(de, ta.width(), ta.height(), r.heat_max);
+    return r;
+}
+
+Image side_by_side(const Image& a, const Image& b, const Image& heat) {
+    constexpr int kGap = 4;
+    const int w = a.width(), h = a.height();
+    Image out(3 * w + 2 * kGap, h, 3, 1.0f);
+    const Image* parts[3] = {&a, &b, &heat};
+    for (int p = 0; p < 3; ++p)
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) out.set_rgb(p * (w + kGap) + x, y, parts[p]->rgb(x, y));
+    return out;
+}
+
+}  // namespace btf::render
