@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job of `make demo`: synthesize btfkit's built-in default material, describe it, and
 # write pictures of it at measured and in-between directions, then compress it and show what the
-# package costs and loses. Later stages of btfkit (assess, render, serve) extend this script.
+# package costs and loses, render it on objects under a sky, and write a report comparing codecs.
+# Later stages of btfkit (serve) extend this script.
 set -euo pipefail
 btf=${1:-build/release/btf}
 out=${DEMO_OUT:-out/demo}
@@ -38,9 +39,31 @@ step "btf info of the package"
 step "btf eval: the package's linear RGB value between measured directions"
 "$btf" eval "$out/$preset.btfpkg" --uv 0.5,0.5 --light 37,100 --view 22,10
 
-step "A compression report: four configurations measured on four views (normal to grazing)"
-"$btf" report "$out/$preset.h5" --views 0,7,37,57 --codecs fmf:C=8,32 pca-views:k=1,C=8 mlvq \
-  --btf-cielab-grid 1 --force -o "$out/report"
+step "Rendering it: a sphere and a cloth drape under a sky, path traced (btf render, docs/scenes.md)"
+cat > "$out/scene.json" <<EOF
+{
+  "camera": {"position": [0, 1.4, 4.2], "look_at": [0, 0.55, 0], "fov": 30, "width": 480, "height": 320},
+  "render": {"integrator": "path", "spp": 32, "max_depth": 6},
+  "objects": [
+    {"name": "sphere", "shape": "sphere", "radius": 0.55, "position": [-0.75, 0.55, 0],
+     "uv_scale": [6, 3], "material": {"type": "btf", "file": "$preset.btfpkg"}},
+    {"name": "cloth drape", "shape": "cylinder", "radius": 0.45, "height": 1.2,
+     "position": [0.75, 0.6, 0], "uv_scale": [5, 2], "material": {"type": "btf", "file": "$preset.btfpkg"}},
+    {"name": "floor", "shape": "plane", "width": 12, "depth": 12,
+     "material": {"type": "diffuse", "albedo": 0.35}}
+  ],
+  "lights": [{"type": "environment", "sky": {"sun_elevation": 40, "sun_azimuth": 60}}]
+}
+EOF
+"$btf" render "$out/scene.json" -o "$out/${preset}_render.png"
+
+step "The uncompressed material against the package on the same objects (btf render --compare)"
+"$btf" render "$out/scene.json" --compare "$out/$preset.h5" "$out/$preset.btfpkg" --spp 16 \
+  -o "$out/${preset}_compare.png"
+
+step "A compression report: four configurations, every image measured, the scene rendered with each"
+"$btf" report "$out/$preset.h5" --codecs fmf:C=8,32 pca-views:k=1,C=8 mlvq \
+  --btf-cielab-grid 1 --scene "$out/scene.json" --render-spp 16 --force -o "$out/report"
 echo "Open file://$(cd "$out/report" && pwd)/index.html in a browser (it needs no network)."
 
 real=../shared/data/ubo2003-proposte-view000

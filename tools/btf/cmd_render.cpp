@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "btf/core/image.h"
-#include "btf/render/compare.h"
+#include "btf/quality/render_compare.h"
 #include "btf/render/renderer.h"
 #include "btf/render/scene_file.h"
 #include "btf/util/atomic_file.h"
@@ -95,10 +95,10 @@ void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalO
             "--compare: the renders reached {} and {} samples per pixel within --time; give "
             "--spp for equal noise",
             results[0].spp, results[1].spp);
-    const render::RenderComparison c =
-        render::compare_renders(results[0].color, results[1].color, setup.exposure);
-    const Image a = render::tone_map(results[0].color, setup.exposure);
-    const Image b = render::tone_map(results[1].color, setup.exposure);
+    const quality::RenderComparison c =
+        quality::compare_renders(results[0].color, results[1].color, setup.exposure);
+    const Image a = quality::tone_map(results[0].color, setup.exposure);
+    const Image b = quality::tone_map(results[1].color, setup.exposure);
     write_image(sibling(args.output, ".a" + ext), a);
     write_image(sibling(args.output, ".b" + ext), b);
     write_image(sibling(args.output, ".diff" + ext), c.heat_map);
@@ -121,7 +121,7 @@ void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalO
         if (!out) fail("{}: cannot write", json_out.destination().string());
     }
     json_out.commit();
-    write_image(args.output, render::side_by_side(a, b, c.heat_map));
+    write_image(args.output, quality::side_by_side(a, b, c.heat_map));
     std::printf(
         "A: %s\nB: %s\nΔE00 mean %.3f, 95th percentile %.3f; SSIM %.4f; PSNR %.2f dB\n"
         "%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n",

@@ -6,6 +6,8 @@
 #include <cstdio>
 
 #include "btf/quality/report.h"
+#include "btf/render/renderer.h"
+#include "btf/render/scene_file.h"
 #include "btf/util/error.h"
 #include "cli.h"
 
@@ -36,6 +38,8 @@ Command register_report(CLI::App& app, GlobalOptions& global) {
         double gain = quality::ReportOptions{}.difference_gain;
         double heat_max = 0;
         int zstd = quality::ReportOptions{}.zstd_level;
+        std::string scene;
+        int render_spp = 0;
     };
     auto args = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand(
@@ -77,6 +81,14 @@ Command register_report(CLI::App& app, GlobalOptions& global) {
                   "do not keep the encoded packages in the report's packages/ folder");
     cmd->add_option("--zstd", args->zstd, "zstd level of the package sections (0 = store raw)")
         ->check(CLI::Range(0, 22));
+    auto* scene = cmd->add_option("--scene", args->scene,
+                                  "also render this scene (docs/scenes.md) with the reference and "
+                                  "every configuration as its BTF materials, and compare the "
+                                  "renders (section \"Rendered\")");
+    cmd->add_option("--render-spp", args->render_spp,
+                    "samples per pixel of those renders (default: the scene's)")
+        ->check(CLI::Range(1, 1 << 20))
+        ->needs(scene);
     add_open_options(*cmd, args->open, args->views);
 
     return {cmd, [args, &global] {
@@ -99,6 +111,30 @@ Command register_report(CLI::App& app, GlobalOptions& global) {
                 options.generator = kVersion;
                 options.command_line = global.command_line;
 
+                if (!args->scene.empty()) {
+                    // Each render loads the scene with its material (a non-owning pointer: the
+                    // material outlives the render); the first, the reference's, checks it.
+                    options.render = [path = args->scene, spp = args->render_spp](
+                                         const Material& material, Progress& progress) {
+                        render::LoadOptions load;
+                        load.btf_override = std::shared_ptr<const Material>(
+                            std::shared_ptr<const Material>(), &material);
+                        const render::LoadedScene loaded = render::load_scene(path, load);
+                        if (loaded.btf_objects == 0)
+                            fail("{}: --scene needs an object with a \"btf\" material", path);
+                        render::RenderOptions ro = loaded.settings.options;
+                        if (spp > 0) ro.spp = spp;
+                        if (ro.spp == 0) ro.spp = 16;  // the scene's time limit does not apply
+                        ro.time_limit = 0;
+                        quality::ReportRender out;
+                        out.image = render::render(loaded.scene, ro, progress).color;
+                        out.caption =
+                            fmt::format("{}: {} × {} pixels, {} samples per pixel, {} integrator",
+                                        path, loaded.scene.camera.width, loaded.scene.camera.height,
+                                        ro.spp, ro.integrator.max_depth == 1 ? "direct" : "path");
+                        return out;
+                    };
+                }
                 const auto source = open_input(args->input, args->open, args->views);
                 for (size_t i = 0; i < chosen.size(); ++i) {
                     quality::ReportImage image;

@@ -18,7 +18,9 @@
 #include "btf/core/color.h"
 #include "btf/core/image.h"
 #include "btf/io/package.h"
+#include "btf/io/sampled_material.h"
 #include "btf/quality/colormap.h"
+#include "btf/quality/render_compare.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -321,6 +323,22 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
         if (p99 > 0 && std::isfinite(p99)) report.exposure = 1 / p99;
     }
 
+    // The reference rendered once; every configuration's render is compared with it.
+    Image reference_render;
+    std::vector<Image> config_renders;
+    if (options.render) {
+        fs::create_directory(root / "renders");
+        StageForwarder stages(progress, "reference: ");
+        {
+            const SampledMaterial material(reference, int64_t(8) << 30, stages.progress());
+            ReportRender rendered = options.render(material, stages.progress());
+            reference_render = std::move(rendered.image);
+            report.render_caption = rendered.caption;
+        }
+        report.render_reference = "renders/reference.png";
+        write_image(root / report.render_reference, tone_map(reference_render));
+    }
+
     const int n = int(options.configs.size());
     const double samples = double(reference.num_texels()) * double(sampling.num_images());
     std::vector<std::vector<std::vector<float>>> de_maps(
@@ -380,6 +398,22 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
                 stages.progress().advance();
             }
             stages.progress().finish();
+            if (options.render) {
+                const std::unique_ptr<Material> material = open_material(package_path);
+                Image rendered = options.render(*material, stages.progress()).image;
+                const RenderComparison cmp = compare_renders(reference_render, rendered);
+                ConfigRender r;
+                r.image = "renders/" + result.id + ".png";
+                r.heat_map = "renders/" + result.id + "-heat.png";
+                r.de2000_mean = cmp.de2000_mean;
+                r.de2000_p95 = cmp.de2000_p95;
+                r.ssim = cmp.ssim;
+                r.psnr = cmp.psnr;
+                report.render_heat_max = std::max(report.render_heat_max, cmp.heat_max);
+                write_image(root / r.image, tone_map(rendered));
+                result.render = r;
+                config_renders.push_back(std::move(rendered));
+            }
             if (!options.keep_packages) fs::remove(package_path);
         } catch (const Cancelled&) {
             throw;
@@ -407,6 +441,14 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
         write_text(root / fmt::format("colorbar-{}.svg", k + 1), colorbar_svg(top, "\u0394E00"));
     }
     de_maps.clear();
+    // The renders' heat maps on one scale, so that they compare.
+    for (int i = 0; i < n && options.render; ++i)
+        write_image(
+            root / report.configs[size_t(i)].render->heat_map,
+            compare_renders(reference_render, config_renders[size_t(i)], 0, report.render_heat_max)
+                .heat_map);
+    if (options.render)
+        write_text(root / "colorbar-render.svg", colorbar_svg(report.render_heat_max, "\u0394E00"));
     if (!options.keep_packages) fs::remove(root / "packages");
     write_text(root / "rd-psnr.svg", rate_distortion_svg(report, RdMeasure::kPsnr));
     if (options.btf_cielab)

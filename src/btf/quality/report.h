@@ -17,6 +17,7 @@
 /// place at the end, so a failed or cancelled run leaves no partial report.
 
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include "btf/codecs/codec.h"
+#include "btf/core/image.h"
 #include "btf/io/source.h"
 #include "btf/quality/btf_cielab.h"
 #include "btf/quality/metrics.h"
@@ -81,6 +83,12 @@ std::vector<ReportImage> default_report_images(const Sampling& sampling);
 /// Pixels between the three crops (reference | decoded | difference) of a crops picture.
 constexpr int kCropGap = 4;
 
+/// A render for the report's "Rendered" section and what it shows (the scene, size, samples).
+struct ReportRender {
+    Image image;  ///< linear radiance
+    std::string caption;
+};
+
 struct ReportOptions {
     std::vector<CodecConfig> configs;
     /// The report folder. It must not exist, be empty, or (with `force`) hold an earlier report.
@@ -109,6 +117,11 @@ struct ReportOptions {
     /// Shown at the bottom: what produced the report and how it was invoked.
     std::string generator = "btfkit";
     std::string command_line;
+    /// When set, a "Rendered" section: the reference (held in memory uncompressed,
+    /// SampledMaterial) and every configuration's package rendered by this function (linear
+    /// radiance, the same scene, camera and seed each time), each render compared with the
+    /// reference's (render_compare.h).
+    std::function<ReportRender(const Material& material, Progress& progress)> render;
 };
 
 /// What the reference is (the page's header).
@@ -127,6 +140,12 @@ struct ConfigImage {
     double de2000_mean = 0, de2000_max = 0;
 };
 
+/// A configuration's render against the reference's (render_compare.h on display values).
+struct ConfigRender {
+    std::string image, heat_map;  ///< file names relative to the report folder
+    double de2000_mean = 0, de2000_p95 = 0, ssim = 1, psnr = 0;
+};
+
 struct ConfigResult {
     CodecConfig config;
     std::string id;       ///< "02-fmf-components-16": names its files
@@ -139,6 +158,7 @@ struct ConfigResult {
     Metrics metrics;
     std::optional<BtfCielabResult> cielab;
     std::vector<ConfigImage> images;  ///< parallel to Report::images
+    std::optional<ConfigRender> render;
 };
 
 struct Report {
@@ -153,6 +173,10 @@ struct Report {
     bool btf_cielab = false;
     BtfCielabOptions cielab_options;
     std::string generator, command_line, created;  ///< created: UTC, ISO 8601
+    /// The rendered section (ReportOptions::render): the reference's render, its caption and
+    /// the heat maps' common top (ΔE00); empty when there is none.
+    std::string render_reference, render_caption;
+    double render_heat_max = 0;
     double seconds = 0;
 };
 

@@ -154,6 +154,10 @@ nlohmann::json report_json(const Report& report) {
     out["generator"] = "btfkit report";
     out["version"] = report.generator;
     out["created"] = report.created;
+    if (!report.render_reference.empty())
+        out["render"] = {{"reference", report.render_reference},
+                         {"caption", report.render_caption},
+                         {"heat_map_max", report.render_heat_max}};
     out["command"] = report.command_line;
     out["seconds"] = report.seconds;
     out["reference"] = {
@@ -221,6 +225,14 @@ nlohmann::json report_json(const Report& report) {
                                   {"seconds", c.cielab->seconds},
                                   {"conditions", values}};
         }
+        if (c.render)
+            item["render"] = {
+                {"image", c.render->image},
+                {"heat_map", c.render->heat_map},
+                {"de2000_mean", c.render->de2000_mean},
+                {"de2000_p95", c.render->de2000_p95},
+                {"ssim", c.render->ssim},
+                {"psnr", std::isfinite(c.render->psnr) ? json(c.render->psnr) : json(nullptr)}};
         item["images"] = json::array();
         for (const ConfigImage& image : c.images)
             item["images"].push_back({{"crops", image.crops},
@@ -409,6 +421,39 @@ std::string report_html(const Report& report) {
             "</table>\n<img src=\"colorbar-{}.svg\" width=\"110\" height=\"320\" alt=\"colour "
             "scale\"/>\n</div>\n",
             i + 1);
+    }
+
+    // ---- renders
+    if (!report.render_reference.empty()) {
+        h += "<h2 id=\"renders\">Rendered</h2>\n";
+        h += fmt::format(
+            "<p class=\"caption\">{}. The reference (the uncompressed material) and every "
+            "configuration's package rendered with the same scene, camera and random seed; beside "
+            "each render the CIEDE2000 difference to the reference's render per pixel, on the "
+            "displayed (tone-mapped) values, from 0 (dark blue) to {:g}. Monte Carlo noise that "
+            "differs between two renders shows as speckle, a material difference as "
+            "structure.</p>\n",
+            esc(report.render_caption), report.render_heat_max);
+        h += "<div class=\"image-section\">\n<table class=\"images\">\n";
+        h += fmt::format(
+            "<tr><td class=\"config\"><b>reference</b></td><td><img src=\"{}\" "
+            "alt=\"reference render\"/></td><td></td></tr>\n",
+            esc(report.render_reference));
+        for (const ConfigResult& c : report.configs) {
+            if (!c.render) continue;
+            h += fmt::format(
+                "<tr><td class=\"config\"><b>{}</b><span>{}</span><span>\u0394E00 mean {:.2f}, "
+                "95th percentile {:.2f}</span><span>SSIM {:.4f}, PSNR {} dB</span></td>",
+                esc(c.config.codec), esc(c.config.parameters_text()), c.render->de2000_mean,
+                c.render->de2000_p95, c.render->ssim, esc(psnr_text(c.render->psnr)));
+            h += fmt::format(
+                "<td><img src=\"{}\" alt=\"render {}\"/></td><td><img src=\"{}\" alt=\"render "
+                "difference {}\"/></td></tr>\n",
+                esc(c.render->image), esc(c.config.label()), esc(c.render->heat_map),
+                esc(c.config.label()));
+        }
+        h += "</table>\n<img src=\"colorbar-render.svg\" width=\"110\" height=\"320\" "
+             "alt=\"colour scale\"/>\n</div>\n";
     }
 
     // ---- footer

@@ -167,6 +167,44 @@ TEST_F(WriteReport, WritesEveryPartForTwoConfigurations) {
     EXPECT_EQ(plot.find("title", series).size(), 2u);
 }
 
+TEST_F(WriteReport, RendersTheReferenceAndEveryConfiguration) {
+    // A "render" that looks at the material from one direction per pixel row: enough to see that
+    // the section compares each package's material with the uncompressed reference.
+    ReportOptions opts = options("rendered");
+    opts.btf_cielab = false;
+    int calls = 0;
+    opts.render = [&calls](const Material& material, Progress&) {
+        ++calls;
+        ReportRender r;
+        r.image = Image(12, 6, 3);
+        for (int y = 0; y < 6; ++y)
+            for (int x = 0; x < 12; ++x)
+                r.image.set_rgb(x, y,
+                                material.eval({(x + 0.5) / 12, 0.3},
+                                              Direction::from_degrees(10.0 * y, 40).vector(),
+                                              Direction::from_degrees(20, 0).vector()));
+        r.caption = "grid of evaluations";
+        return r;
+    };
+    const Report report = write_report(*s_source, opts);
+    const fs::path dir = m_dir / "rendered";
+    EXPECT_EQ(calls, 3);  // the reference and two configurations
+    EXPECT_EQ(report.render_caption, "grid of evaluations");
+    EXPECT_TRUE(fs::is_regular_file(dir / report.render_reference));
+    EXPECT_TRUE(fs::is_regular_file(dir / "colorbar-render.svg"));
+    ASSERT_TRUE(report.configs[0].render && report.configs[1].render);
+    for (const ConfigResult& c : report.configs) {
+        EXPECT_EQ(read_image(dir / c.render->image).width(), 12);
+        EXPECT_EQ(read_image(dir / c.render->heat_map).width(), 12);
+    }
+    // Six components reproduce the reference better than one.
+    EXPECT_LT(report.configs[1].render->de2000_mean, report.configs[0].render->de2000_mean);
+    EXPECT_GT(report.configs[1].render->ssim, report.configs[0].render->ssim);
+    const std::string html = read_text(dir / "index.html");
+    EXPECT_NE(html.find("<h2 id=\"renders\">Rendered</h2>"), std::string::npos);
+    EXPECT_NO_THROW(test::parse_xml(html));
+}
+
 TEST_F(WriteReport, RefusesFoldersItDidNotWrite) {
     ReportOptions opts = options("mine");
     opts.btf_cielab = false;

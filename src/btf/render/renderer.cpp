@@ -5,6 +5,7 @@
 #include <cmath>
 #include <vector>
 
+#include "btf/quality/render_compare.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -97,27 +98,12 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
     return result;
 }
 
-Image tone_map(const Image& linear, double exposure) {
-    Image out(linear.width(), linear.height(), 3);
-    const float gain = float(std::exp2(exposure));
-    const float* in = linear.data();
-    float* o = out.data();
-    const size_t n = size_t(linear.num_pixels());
-    for (size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) {
-            const float x = std::max(0.0f, in[i * linear.channels() + c] * gain);
-            o[i * 3 + c] = std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f),
-                                      0.0f, 1.0f);
-        }
-    return out;
-}
-
 void write_render(const std::filesystem::path& path, const RenderResult& result, double exposure) {
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return std::tolower(c); });
     const bool hdr = ext == ".exr" || ext == ".hdr";
-    write_image(path, hdr ? result.color : tone_map(result.color, exposure));
+    write_image(path, hdr ? result.color : quality::tone_map(result.color, exposure));
     if (result.albedo.empty()) return;
     const std::filesystem::path stem = path.parent_path() / path.stem();
     write_image(stem.string() + ".albedo.exr", result.albedo);

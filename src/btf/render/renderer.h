@@ -36,13 +36,9 @@ struct RenderResult {
 RenderResult render(const Scene& scene, const RenderOptions& options,
                     Progress& progress = Progress::none());
 
-/// ACES filmic curve (Narkowicz's fit) after scaling by 2^exposure: linear radiance to display
-/// values in [0, 1], still linear (write_image() applies the sRGB transfer for PNG).
-Image tone_map(const Image& linear, double exposure = 0);
-
 /// Writes `result` for an output path: `.exr` is linear radiance; `.png` (or any 8-bit format) is
-/// tone-mapped; with AOVs, `<stem>.albedo.exr`, `<stem>.normal.exr` and `<stem>.uv.exr` beside it.
-/// Every file is written atomically.
+/// tone-mapped (quality::tone_map); with AOVs, `<stem>.albedo.exr`, `<stem>.normal.exr` and
+/// `<stem>.uv.exr` beside it. Every file is written atomically.
 void write_render(const std::filesystem::path& path, const RenderResult& result,
                   double exposure = 0);
 

@@ -192,9 +192,9 @@ class SceneReader {
         if (type == "btf") {
             n.allow({"type", "file"});
             ++m_btf_objects;
-            const std::filesystem::path file = resolve(n.required_string("file"));
             std::shared_ptr<const Material> material = m_options.btf_override;
             if (!material) {
+                const std::filesystem::path file = resolve(n.required_string("file"));
                 auto it = m_materials.find(file.string());
                 if (it == m_materials.end()) {
                     try {

@@ -25,7 +25,8 @@ struct SceneSettings {
 struct LoadOptions {
     SamplingMode sampling = SamplingMode::kMaterial;
     /// When set, every object whose material is a BTF file gets this material instead (the
-    /// compare mode renders one scene with two versions of a material).
+    /// compare mode renders one scene with two versions of a material); its "file" may then be
+    /// left out and is not opened.
     std::shared_ptr<const Material> btf_override;
 };
 

@@ -1,4 +1,4 @@
-#include "btf/render/compare.h"
+#include "btf/quality/render_compare.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,10 +7,9 @@
 #include "btf/core/color.h"
 #include "btf/quality/colormap.h"
 #include "btf/quality/metrics.h"
-#include "btf/render/renderer.h"
 #include "btf/util/error.h"
 
-namespace btf::render {
+namespace btf::quality {
 
 namespace {
 
@@ -23,6 +22,21 @@ double percentile(std::vector<float> values, double q) {
 
 }  // namespace
 
+Image tone_map(const Image& linear, double exposure) {
+    Image out(linear.width(), linear.height(), 3);
+    const float gain = float(std::exp2(exposure));
+    const float* in = linear.data();
+    float* o = out.data();
+    const size_t n = size_t(linear.num_pixels());
+    for (size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+            const float x = std::max(0.0f, in[i * linear.channels() + c] * gain);
+            o[i * 3 + c] = std::clamp((x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f),
+                                      0.0f, 1.0f);
+        }
+    return out;
+}
+
 RenderComparison compare_renders(const Image& a, const Image& b, double exposure, double heat_max) {
     if (a.width() != b.width() || a.height() != b.height())
         throw Error("compare_renders: the images differ in size");
@@ -34,7 +48,7 @@ RenderComparison compare_renders(const Image& a, const Image& b, double exposure
     for (int64_t i = 0; i < n; ++i) {
         const int x = int(i % ta.width()), y = int(i / ta.width());
         const Rgb ca = ta.rgb(x, y), cb = tb.rgb(x, y);
-        de[size_t(i)] = float(quality::ciede2000(rgb_to_lab(ca), rgb_to_lab(cb)));
+        de[size_t(i)] = float(ciede2000(rgb_to_lab(ca), rgb_to_lab(cb)));
         ya[size_t(i)] = linear_to_srgb(luminance(ca));
         yb[size_t(i)] = linear_to_srgb(luminance(cb));
         const float dr = ca.r - cb.r, dg = ca.g - cb.g, db = ca.b - cb.b;
@@ -45,10 +59,10 @@ RenderComparison compare_renders(const Image& a, const Image& b, double exposure
     for (float d : de) sum += d;
     r.de2000_mean = n ? sum / double(n) : 0;
     r.de2000_p95 = percentile(de, 0.95);
-    r.ssim = quality::mssim(ya.data(), yb.data(), ta.width(), ta.height());
+    r.ssim = mssim(ya.data(), yb.data(), ta.width(), ta.height());
     const double mse = n ? squared / (3.0 * double(n)) : 0;
     r.psnr = mse > 0 ? 10 * std::log10(1 / mse) : INFINITY;
-    r.heat_max = heat_max > 0 ? heat_max : quality::nice_ceil(std::max(1.0, percentile(de, 0.99)));
+    r.heat_max = heat_max > 0 ? heat_max : nice_ceil(std::max(1.0, percentile(de, 0.99)));
     r.heat_map = quality::heat_map(de, ta.width(), ta.height(), r.heat_max);
     return r;
 }
@@ -64,4 +78,4 @@ Image side_by_side(const Image& a, const Image& b, const Image& heat) {
     return out;
 }
 
-}  // namespace btf::render
+}  // namespace btf::quality

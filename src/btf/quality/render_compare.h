@@ -3,8 +3,8 @@
 /// scene with two versions of a material (raw and compressed, or two codec settings) so that a
 /// user can judge whether the difference matters on an object under real light.
 ///
-/// Measured on what a display shows: both images tone-mapped with the same exposure
-/// (render::tone_map), then
+/// Measured on what a display shows: both images tone-mapped with the same exposure (tone_map()),
+/// then
 ///  - CIEDE2000 per pixel between the tone-mapped values taken as linear RGB with white = 1
 ///    (mean and 95th percentile), the heat map's quantity;
 ///  - MSSIM of the sRGB-encoded luminance (Rec. 709 Y of the tone-mapped values), window 11, σ 1.5;
@@ -14,7 +14,7 @@
 
 #include "btf/core/image.h"
 
-namespace btf::render {
+namespace btf::quality {
 
 struct RenderComparison {
     double de2000_mean = 0, de2000_p95 = 0;
@@ -24,6 +24,10 @@ struct RenderComparison {
     double heat_max = 0;
 };
 
+/// ACES filmic curve (Narkowicz's fit) after scaling by 2^exposure: linear radiance to display
+/// values in [0, 1], still linear (write_image() applies the sRGB transfer for PNG).
+Image tone_map(const Image& linear, double exposure = 0);
+
 /// Compares two linear renders of equal size. `heat_max` ≤ 0 picks a round maximum above the
 /// 99th percentile of ΔE00. Throws btf::Error if the sizes differ.
 RenderComparison compare_renders(const Image& a, const Image& b, double exposure = 0,
@@ -32,4 +36,4 @@ RenderComparison compare_renders(const Image& a, const Image& b, double exposure
 /// A, B and the heat map side by side, separated by 4-pixel gaps (display values).
 Image side_by_side(const Image& a_display, const Image& b_display, const Image& heat_map);
 
-}  // namespace btf::render
+}  // namespace btf::quality
