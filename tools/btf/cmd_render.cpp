@@ -155,9 +155,9 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
                     "image size 'width,height' (default: the scene's camera)");
     cmd->add_option("--exposure", args->exposure, "exposure in EV for the tone-mapped PNG");
     cmd->add_option("--sampling", args->sampling,
-                    "how BTF surfaces draw light directions: material (their importance "
-                    "sampling) or cosine")
-        ->check(CLI::IsMember({"material", "cosine"}));
+                    "how BTF surfaces draw light directions: material (their own importance "
+                    "sampling), generic (the tabulated sampler, even for mlvq) or cosine")
+        ->check(CLI::IsMember({"material", "generic", "cosine"}));
     cmd->add_flag("--aov", args->aovs,
                   "also write <out>.albedo.exr, <out>.normal.exr, <out>.uv.exr");
     cmd->add_option("--compare", args->compare,
@@ -168,8 +168,9 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
 
     return {cmd, [args, &global] {
                 render::LoadOptions load;
-                load.sampling = args->sampling == "cosine" ? render::SamplingMode::kCosine
-                                                           : render::SamplingMode::kMaterial;
+                load.sampling = args->sampling == "cosine"    ? render::SamplingMode::kCosine
+                                : args->sampling == "generic" ? render::SamplingMode::kGeneric
+                                                              : render::SamplingMode::kMaterial;
                 if (args->compare.empty()) {
                     render::LoadedScene loaded = render::load_scene(args->scene, load);
                     const RenderSetup setup = setup_render(*args, loaded);

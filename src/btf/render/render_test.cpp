@@ -214,9 +214,11 @@ TEST(Render, TangentFrameFollowsIncreasingU) {
 TEST(Render, SurfaceSamplingDensities) {
     const DiffuseSurface diffuse({0.5f, 0.5f, 0.5f});
     const ConductorSurface metal({0.9f, 0.9f, 0.9f}, 0.25);
+    const BtfSurface btf(lambertian(0.8f));  // the generic tabulated sampler
     const Vec3 wo = normalize(Vec3{0.4, -0.2, 0.8});
     for (const Surface* s :
-         {static_cast<const Surface*>(&diffuse), static_cast<const Surface*>(&metal)}) {
+         {static_cast<const Surface*>(&diffuse), static_cast<const Surface*>(&metal),
+          static_cast<const Surface*>(&btf)}) {
         // pdf() integrates to at most 1 over the hemisphere (the conductor loses the half vectors
         // that reflect below the horizon), and sample() reports pdf() of what it draws.
         double integral = 0;
@@ -230,6 +232,7 @@ TEST(Render, SurfaceSamplingDensities) {
         integral *= 2 * kPi / (double(kN) * kN);
         EXPECT_LE(integral, 1.01);
         EXPECT_GT(integral, 0.9);
+        if (s != &metal) EXPECT_NEAR(integral, 1.0, 0.01);  // nothing drawn below the horizon
         double weight_mean = 0, value_integral = 0;
         for (int i = 0; i < 64; ++i)
             for (int j = 0; j < 64; ++j) {

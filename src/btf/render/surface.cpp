@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "btf/core/hemisphere.h"
+#include "btf/core/light_sampler.h"
 
 namespace btf::render {
 
@@ -44,7 +45,9 @@ LightSample BtfSurface::sample(const Uv& uv, const Vec3& wo, double xi1, double 
         const Vec3 wi = cosine_direction(xi1, xi2);
         return finish(wi, wi.z / kPi, eval(uv, wi, wo));
     }
-    LightSample s = m_material->sample(uv, wo, xi1, xi2);
+    LightSample s = m_mode == SamplingMode::kGeneric
+                        ? m_material->generic_sampler().sample(uv, wo, xi1, xi2)
+                        : m_material->sample(uv, wo, xi1, xi2);
     s.value = clamp_black(s.value);
     s.weight = clamp_black(s.weight);
     return s;
@@ -53,6 +56,7 @@ LightSample BtfSurface::sample(const Uv& uv, const Vec3& wo, double xi1, double 
 double BtfSurface::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
     if (wi.z <= 0) return 0;
     if (m_mode == SamplingMode::kCosine) return wi.z / kPi;
+    if (m_mode == SamplingMode::kGeneric) return m_material->generic_sampler().pdf(uv, wo, wi);
     return m_material->pdf(uv, wo, wi);
 }
 

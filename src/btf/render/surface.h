@@ -20,6 +20,9 @@ enum class SamplingMode {
     kMaterial,  ///< the material's own sample() (BTF importance sampling)
     kCosine,    ///< cosine-weighted hemisphere sampling (the baseline BTF sampling is measured
                 ///< against)
+    /// the generic tabulated sampler (btf/core/light_sampler.h) even for a material with native
+    /// sampling, to measure what native sampling gains
+    kGeneric,
 };
 
 class Surface {
