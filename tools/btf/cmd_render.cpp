@@ -35,13 +35,14 @@ struct RenderSetup {
 // The scene's "render" block with the command line's overrides applied.
 RenderSetup setup_render(const RenderArgs& args, render::LoadedScene& loaded) {
     render::RenderOptions options = loaded.settings.options;
-    if (args.integrator == "direct") options.integrator.max_depth = 1;
-    if (args.integrator == "path" && options.integrator.max_depth == 1)
-        options.integrator.max_depth = 8;
-    if (args.max_depth > 0) {
-        if (options.integrator.max_depth == 1 && args.integrator != "path")
-            fail("--max-depth applies to the path integrator");
-        options.integrator.max_depth = args.max_depth;
+    const std::string integrator =
+        args.integrator.empty() ? loaded.settings.integrator : args.integrator;
+    if (integrator == "direct") {
+        if (args.max_depth > 0) fail("--max-depth applies to the path integrator");
+        options.integrator.max_depth = 1;
+    } else {
+        if (loaded.settings.integrator != "path") options.integrator.max_depth = 8;
+        if (args.max_depth > 0) options.integrator.max_depth = args.max_depth;
     }
     if (args.spp >= 0) options.spp = args.spp;
     if (args.time >= 0) options.time_limit = args.time;
@@ -62,6 +63,9 @@ void print_result(const std::string& name, const render::RenderResult& result) {
     std::printf("%s: %d × %d, %d samples per pixel, %.1f s (%.2f M paths/s)\n", name.c_str(),
                 result.color.width(), result.color.height(), result.spp, result.seconds,
                 double(result.paths()) / result.seconds / 1e6);
+    if (result.dropped)
+        std::fprintf(stderr, "btf: warning: %llu samples were not finite and were left out\n",
+                     static_cast<unsigned long long>(result.dropped));
 }
 
 // <stem><suffix> beside `output`.
@@ -71,37 +75,39 @@ std::string sibling(const std::string& output, const std::string& suffix) {
 }
 
 void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalOptions& global) {
-    const OutputKind kind = output_kind(args.output);
     const std::string ext = lower_extension(args.output);
-    if (kind != OutputKind::kOther || ext == ".exr" || ext == ".hdr")
+    if (output_kind(args.output) != OutputKind::kOther || is_float_image_format(args.output))
         fail("{}: --compare writes a picture: give a .png or .jpg output", args.output);
     if (args.aovs) fail("--aov does not apply to --compare");
-    std::shared_ptr<const Material> materials[2];
-    for (int i = 0; i < 2; ++i) materials[i] = render::open_material_file(args.compare[size_t(i)]);
+    const std::string outputs[4] = {args.output, sibling(args.output, ".a" + ext),
+                                    sibling(args.output, ".b" + ext),
+                                    sibling(args.output, ".diff" + ext)};
+    for (const std::string& out : outputs) check_image_output(out);
+    const std::string json_path = sibling(args.output, ".json");
+    { const AtomicOutput probe(json_path); }
+
     render::RenderResult results[2];
     RenderSetup setup;
     for (int i = 0; i < 2; ++i) {
-        load.btf_override = materials[i];
+        // One material in memory at a time (raw data can take gigabytes).
+        load.btf_override = render::open_material_file(args.compare[size_t(i)]);
         render::LoadedScene loaded = render::load_scene(args.scene, load);
         if (loaded.btf_objects == 0)
             fail("{}: --compare needs an object with a \"btf\" material", args.scene);
         setup = setup_render(args, loaded);
+        if (i == 1) {
+            // B gets exactly A's samples per pixel (A may have stopped at a time limit).
+            setup.options.spp = results[0].spp;
+            setup.options.time_limit = 0;
+        }
         Progress progress = make_progress(global);
         results[i] = render::render(loaded.scene, setup.options, progress);
         if (!global.quiet) print_result(args.compare[size_t(i)], results[i]);
     }
-    if (results[0].spp != results[1].spp)
-        fail(
-            "--compare: the renders reached {} and {} samples per pixel within --time; give "
-            "--spp for equal noise",
-            results[0].spp, results[1].spp);
     const quality::RenderComparison c =
         quality::compare_renders(results[0].color, results[1].color, setup.exposure);
     const Image a = quality::tone_map(results[0].color, setup.exposure);
     const Image b = quality::tone_map(results[1].color, setup.exposure);
-    write_image(sibling(args.output, ".a" + ext), a);
-    write_image(sibling(args.output, ".b" + ext), b);
-    write_image(sibling(args.output, ".diff" + ext), c.heat_map);
     nlohmann::json metrics = {
         {"a", args.compare[0]},
         {"b", args.compare[1]},
@@ -114,14 +120,17 @@ void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalO
         {"psnr_db", std::isfinite(c.psnr) ? nlohmann::json(c.psnr) : nlohmann::json(nullptr)},
         {"heat_map_max", c.heat_max},
     };
-    AtomicOutput json_out(sibling(args.output, ".json"));
+    AtomicOutputSet files;  // all five files or none
+    write_image(files.add(outputs[0]), quality::side_by_side(a, b, c.heat_map));
+    write_image(files.add(outputs[1]), a);
+    write_image(files.add(outputs[2]), b);
+    write_image(files.add(outputs[3]), c.heat_map);
     {
-        std::ofstream out(json_out.temp_path());
+        std::ofstream out(files.add(json_path));
         out << metrics.dump(2) << "\n";
-        if (!out) fail("{}: cannot write", json_out.destination().string());
+        if (!out) fail("{}: cannot write", json_path);
     }
-    json_out.commit();
-    write_image(args.output, quality::side_by_side(a, b, c.heat_map));
+    files.commit();
     std::printf(
         "A: %s\nB: %s\nΔE00 mean %.3f, 95th percentile %.3f; SSIM %.4f; PSNR %.2f dB\n"
         "%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n",
@@ -172,6 +181,7 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
                                 : args->sampling == "generic" ? render::SamplingMode::kGeneric
                                                               : render::SamplingMode::kMaterial;
                 if (args->compare.empty()) {
+                    render::check_render_output(args->output, args->aovs);
                     render::LoadedScene loaded = render::load_scene(args->scene, load);
                     const RenderSetup setup = setup_render(*args, loaded);
                     Progress progress = make_progress(global);

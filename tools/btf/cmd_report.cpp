@@ -128,6 +128,7 @@ Command register_report(CLI::App& app, GlobalOptions& global) {
                         ro.time_limit = 0;
                         quality::ReportRender out;
                         out.image = render::render(loaded.scene, ro, progress).color;
+                        out.exposure = loaded.settings.exposure;
                         out.caption =
                             fmt::format("{}: {} × {} pixels, {} samples per pixel, {} integrator",
                                         path, loaded.scene.camera.width, loaded.scene.camera.height,

@@ -121,6 +121,15 @@ TEST_F(RenderCli, BadScenesGiveOneLineAndNoImage) {
     EXPECT_NE(r.output.find("absent.btfpkg: no such file"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(path("nofile.png")));
 
+    // Output names are checked before anything is rendered.
+    r = run("render " + path("typo.json") + " -o " + path("out.notanimage"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("out.notanimage: unsupported image format"), std::string::npos)
+        << r.output;
+    r = run("render " + path("typo.json") + " -o " + path("no-such-folder/out.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
+
     r = run("render " + path("missing.json") + " -o " + path("m.png"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("missing.json: cannot open the scene file"), std::string::npos)

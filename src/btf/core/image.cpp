@@ -129,12 +129,29 @@ std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size
     return std::pair<int, int>{input->spec().width, input->spec().height};
 }
 
-void write_image(const std::filesystem::path& path, const Image& image, Encoding encoding) {
-    if (image.empty()) fail("{}: refusing to write an empty image", path.string());
+namespace {
+std::string lower_extension(const std::filesystem::path& path) {
     std::string ext = path.extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    const bool is_float =
-        ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
+    return ext;
+}
+}  // namespace
+
+bool is_float_image_format(const std::filesystem::path& path) {
+    const std::string ext = lower_extension(path);
+    return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
+}
+
+void check_image_output(const std::filesystem::path& path) {
+    if (!OIIO::ImageOutput::create(path.string()))
+        fail("{}: unsupported image format '{}'", path.string(), lower_extension(path));
+    const AtomicOutput probe(path);  // checks the folder; creates nothing
+}
+
+void write_image(const std::filesystem::path& path, const Image& image, Encoding encoding) {
+    if (image.empty()) fail("{}: refusing to write an empty image", path.string());
+    const std::string ext = lower_extension(path);
+    const bool is_float = is_float_image_format(path);
     AtomicOutput out(path);
     // OpenImageIO picks the format from the file name; keep the real extension on the temp file.
     std::filesystem::path temp = out.temp_path();

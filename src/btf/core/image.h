@@ -72,6 +72,13 @@ Image read_image_memory(const void* data, size_t size, const std::string& name,
 std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size_t size,
                                                           const std::string& name,
                                                           std::string* error = nullptr);
+/// True for the extensions write_image() stores as linear floats (exr, hdr, tif, tiff, pfm);
+/// other formats are 8-bit sRGB.
+bool is_float_image_format(const std::filesystem::path& path);
+/// Throws btf::Error naming `path` unless write_image() can write its format and its folder
+/// exists: the check a long computation makes before it starts.
+void check_image_output(const std::filesystem::path& path);
+
 /// Writes an image; format from the extension. 8-bit formats (png, jpg) are sRGB-encoded from
 /// linear unless `encoding` is kRaw; exr is written as half floats, linear. Atomic (temp + rename).
 void write_image(const std::filesystem::path& path, const Image& image,

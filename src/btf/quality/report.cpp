@@ -334,9 +334,11 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
             ReportRender rendered = options.render(material, stages.progress());
             reference_render = std::move(rendered.image);
             report.render_caption = rendered.caption;
+            report.render_exposure = rendered.exposure;
         }
         report.render_reference = "renders/reference.png";
-        write_image(root / report.render_reference, tone_map(reference_render));
+        write_image(root / report.render_reference,
+                    tone_map(reference_render, report.render_exposure));
     }
 
     const int n = int(options.configs.size());
@@ -401,7 +403,8 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
             if (options.render) {
                 const std::unique_ptr<Material> material = open_material(package_path);
                 Image rendered = options.render(*material, stages.progress()).image;
-                const RenderComparison cmp = compare_renders(reference_render, rendered);
+                const RenderComparison cmp =
+                    compare_renders(reference_render, rendered, report.render_exposure);
                 ConfigRender r;
                 r.image = "renders/" + result.id + ".png";
                 r.heat_map = "renders/" + result.id + "-heat.png";
@@ -410,7 +413,7 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
                 r.ssim = cmp.ssim;
                 r.psnr = cmp.psnr;
                 report.render_heat_max = std::max(report.render_heat_max, cmp.heat_max);
-                write_image(root / r.image, tone_map(rendered));
+                write_image(root / r.image, tone_map(rendered, report.render_exposure));
                 result.render = r;
                 config_renders.push_back(std::move(rendered));
             }
@@ -443,10 +446,10 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
     de_maps.clear();
     // The renders' heat maps on one scale, so that they compare.
     for (int i = 0; i < n && options.render; ++i)
-        write_image(
-            root / report.configs[size_t(i)].render->heat_map,
-            compare_renders(reference_render, config_renders[size_t(i)], 0, report.render_heat_max)
-                .heat_map);
+        write_image(root / report.configs[size_t(i)].render->heat_map,
+                    compare_renders(reference_render, config_renders[size_t(i)],
+                                    report.render_exposure, report.render_heat_max)
+                        .heat_map);
     if (options.render)
         write_text(root / "colorbar-render.svg", colorbar_svg(report.render_heat_max, "\u0394E00"));
     if (!options.keep_packages) fs::remove(root / "packages");

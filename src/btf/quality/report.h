@@ -87,6 +87,7 @@ constexpr int kCropGap = 4;
 struct ReportRender {
     Image image;  ///< linear radiance
     std::string caption;
+    double exposure = 0;  ///< EV for display and for the comparison (the scene's)
 };
 
 struct ReportOptions {
@@ -177,6 +178,7 @@ struct Report {
     /// the heat maps' common top (ΔE00); empty when there is none.
     std::string render_reference, render_caption;
     double render_heat_max = 0;
+    double render_exposure = 0;
     double seconds = 0;
 };
 

@@ -83,7 +83,7 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         for (const auto& light : scene.lights()) {
             const double xi1 = rng.uniform(), xi2 = rng.uniform();
             const LightDirection ld = light->sample(hit.position, xi1, xi2);
-            if (!ld.delta && (ld.pdf <= 0 || options.strategy == LightStrategy::kMaterialOnly))
+            if (!ld.delta && (!(ld.pdf > 0) || options.strategy == LightStrategy::kMaterialOnly))
                 continue;
             if (is_black(ld.radiance) || dot(ld.wi, hit.geometric_normal) <= 0) continue;
             const Vec3 wi = hit.to_local(ld.wi);
@@ -106,7 +106,7 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
             break;  // no emitter a further ray could reach
         const double xi1 = rng.uniform(), xi2 = rng.uniform();
         const LightSample s = surface.sample(hit.uv, wo, xi1, xi2);
-        if (s.pdf <= 0 || is_black(s.weight)) break;
+        if (!(s.pdf > 0) || is_black(s.weight)) break;
         const Vec3 wi = hit.to_world(s.wi);
         if (dot(wi, hit.geometric_normal) <= 0) break;  // would leave through the surface
         beta = mul(beta, s.weight * float(1 / kPi));

@@ -38,7 +38,9 @@ LightDirection SphereLight::sample(const Vec3& p, double xi1, double xi2) const 
     if (dist2 <= r2) return l;  // inside the light: it is not sampled from there
     const double dist = std::sqrt(dist2);
     const double cos_max = std::sqrt(std::max(0.0, 1 - r2 / dist2));
-    const double cos_t = 1 - xi1 * (1 - cos_max);
+    // 1 − cos θmax without cancellation: a small or distant sphere subtends a tiny cone.
+    const double one_minus = (r2 / dist2) / (1 + cos_max);
+    const double cos_t = 1 - xi1 * one_minus;
     const double sin_t = std::sqrt(std::max(0.0, 1 - cos_t * cos_t));
     const double phi = 2 * kPi * xi2;
     const Vec3 n = d / dist;
@@ -51,7 +53,7 @@ LightDirection SphereLight::sample(const Vec3& p, double xi1, double xi2) const 
         l.distance = dist * cos_t;
     }
     l.radiance = m_radiance;
-    l.pdf = 1 / (2 * kPi * (1 - cos_max));
+    l.pdf = 1 / (2 * kPi * one_minus);
     return l;
 }
 
@@ -61,7 +63,7 @@ double SphereLight::pdf(const Vec3& p, const Vec3& wi) const {
     if (dist2 <= r2) return 0;
     const double cos_max = std::sqrt(std::max(0.0, 1 - r2 / dist2));
     if (dot(wi, d) < cos_max * std::sqrt(dist2)) return 0;
-    return 1 / (2 * kPi * (1 - cos_max));
+    return 1 / (2 * kPi * ((r2 / dist2) / (1 + cos_max)));
 }
 
 double SphereLight::intersect(const Vec3& o, const Vec3& d) const {

@@ -29,7 +29,6 @@ class Light {
     virtual LightDirection sample(const Vec3& p, double xi1, double xi2) const = 0;
     /// The density with which sample(p, ·) draws the direction wi (0 for delta lights).
     virtual double pdf(const Vec3& p, const Vec3& wi) const = 0;
-    virtual bool delta() const { return false; }
 };
 
 /// An isotropic point light of intensity I (W/sr per channel).
@@ -39,7 +38,6 @@ class PointLight final : public Light {
         : m_position(position), m_intensity(intensity) {}
     LightDirection sample(const Vec3& p, double, double) const override;
     double pdf(const Vec3&, const Vec3&) const override { return 0; }
-    bool delta() const override { return true; }
 
   private:
     Vec3 m_position;
@@ -54,7 +52,6 @@ class DirectionalLight final : public Light {
         : m_towards(normalize(towards)), m_irradiance(irradiance) {}
     LightDirection sample(const Vec3& p, double, double) const override;
     double pdf(const Vec3&, const Vec3&) const override { return 0; }
-    bool delta() const override { return true; }
 
   private:
     Vec3 m_towards;

@@ -170,18 +170,21 @@ TEST(Render, TangentFrameFollowsIncreasingU) {
         const char* name;
         TriangleMesh mesh;
         double uv_rotation;
+        bool from_below = false;  // the camera sees the surface's back
     };
     std::vector<Case> cases;
     cases.push_back({"plane", make_plane(4, 4), 0});
     cases.push_back({"plane, uv rotated 90°", make_plane(4, 4), 90});
+    cases.push_back({"plane from below, uv rotated 90°", make_plane(4, 4), 90, true});
+    cases.push_back({"plane from below, uv rotated 30°", make_plane(4, 4), 30, true});
     cases.push_back({"sphere", make_sphere(1, 96), 0});
     cases.push_back({"cylinder", make_cylinder(1, 2, 96), 0});
     cases.push_back({"cylinder, uv rotated 30°", make_cylinder(1, 2, 96), 30});
     for (Case& c : cases) {
         for (double side : {1.0, -1.0}) {
             Scene scene;
-            scene.camera.position = {0.3, 2.5, 3};
-            scene.camera.look_at = {0, 0.2, 0};
+            scene.camera.position = {0.3, c.from_below ? -2.5 : 2.5, 3};
+            scene.camera.look_at = {0, c.from_below ? -0.2 : 0.2, 0};
             scene.camera.fov = 10;
             scene.camera.width = scene.camera.height = 9;
             SceneObject o = object_of(c.mesh, std::make_shared<BtfSurface>(azimuth_material()));

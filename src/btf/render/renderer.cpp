@@ -1,11 +1,13 @@
 #include "btf/render/renderer.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <vector>
 
 #include "btf/quality/render_compare.h"
+#include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -42,6 +44,7 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
     };
 
     std::vector<double> sum(size_t(width) * height * 3, 0.0);
+    std::atomic<uint64_t> dropped{0};
     RenderResult result;
     if (options.aovs) {
         result.albedo = Image(width, height, 3);
@@ -58,6 +61,7 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
     for (; options.spp <= 0 || pass < options.spp; ++pass) {
         if (timed && pass > 0 && elapsed() >= options.time_limit) break;
         parallel_for(0, int64_t(tiles.size()), [&](int64_t t) {
+            progress.poll();  // Ctrl-C stops within a tile, also when only time limits the run
             const Tile& tile = tiles[size_t(t)];
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x = tile.x0; x < tile.x1; ++x) {
@@ -73,6 +77,8 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
                     // A NaN or infinite sample (a pdf underflow) would ruin the pixel for good.
                     if (std::isfinite(L.r) && std::isfinite(L.g) && std::isfinite(L.b))
                         p[0] += L.r, p[1] += L.g, p[2] += L.b;
+                    else
+                        dropped.fetch_add(1, std::memory_order_relaxed);
                     if (want_aovs && first.found) {
                         result.albedo.set_rgb(x, y, first.albedo);
                         result.normal.set_rgb(
@@ -92,23 +98,37 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
     progress.finish();
     result.spp = pass;
     result.seconds = elapsed();
+    result.dropped = dropped.load();
     result.color = Image(width, height, 3);
     const double inv = pass > 0 ? 1.0 / pass : 0;
     for (size_t i = 0; i < sum.size(); ++i) result.color.data()[i] = float(sum[i] * inv);
     return result;
 }
 
+namespace {
+std::filesystem::path aov_path(const std::filesystem::path& path, const char* name) {
+    return (path.parent_path() / path.stem()).string() + "." + name + ".exr";
+}
+}  // namespace
+
+void check_render_output(const std::filesystem::path& path, bool aovs) {
+    check_image_output(path);
+    if (aovs)
+        for (const char* name : {"albedo", "normal", "uv"})
+            check_image_output(aov_path(path, name));
+}
+
 void write_render(const std::filesystem::path& path, const RenderResult& result, double exposure) {
-    std::string ext = path.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return std::tolower(c); });
-    const bool hdr = ext == ".exr" || ext == ".hdr";
-    write_image(path, hdr ? result.color : quality::tone_map(result.color, exposure));
-    if (result.albedo.empty()) return;
-    const std::filesystem::path stem = path.parent_path() / path.stem();
-    write_image(stem.string() + ".albedo.exr", result.albedo);
-    write_image(stem.string() + ".normal.exr", result.normal);
-    write_image(stem.string() + ".uv.exr", result.uv);
+    AtomicOutputSet files;
+    write_image(files.add(path), is_float_image_format(path)
+                                     ? result.color
+                                     : quality::tone_map(result.color, exposure));
+    if (!result.albedo.empty()) {
+        write_image(files.add(aov_path(path, "albedo")), result.albedo);
+        write_image(files.add(aov_path(path, "normal")), result.normal);
+        write_image(files.add(aov_path(path, "uv")), result.uv);
+    }
+    files.commit();
 }
 
 }  // namespace btf::render

@@ -30,15 +30,22 @@ struct RenderResult {
     Image albedo, normal, uv;  ///< AOVs (when requested): first-hit albedo, world normal, uv
     int spp = 0;
     double seconds = 0;
+    /// Samples left out of their pixel's mean because they were not finite (counted in the
+    /// divisor, so such pixels are slightly dark): non-zero means a numerical problem.
+    uint64_t dropped = 0;
     uint64_t paths() const { return uint64_t(color.num_pixels()) * uint64_t(spp); }
 };
 
 RenderResult render(const Scene& scene, const RenderOptions& options,
                     Progress& progress = Progress::none());
 
-/// Writes `result` for an output path: `.exr` is linear radiance; `.png` (or any 8-bit format) is
-/// tone-mapped (quality::tone_map); with AOVs, `<stem>.albedo.exr`, `<stem>.normal.exr` and
-/// `<stem>.uv.exr` beside it. Every file is written atomically.
+/// Writes `result` for an output path: a float format (`.exr`, is_float_image_format()) holds
+/// linear radiance; `.png` (or any 8-bit format) is tone-mapped (quality::tone_map); with AOVs,
+/// `<stem>.albedo.exr`, `<stem>.normal.exr` and `<stem>.uv.exr` beside it. All files appear
+/// together or, on failure, none.
+/// Throws btf::Error unless write_render() can write `path` (and the AOVs): called before a long
+/// render starts.
+void check_render_output(const std::filesystem::path& path, bool aovs);
 void write_render(const std::filesystem::path& path, const RenderResult& result,
                   double exposure = 0);
 

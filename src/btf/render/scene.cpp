@@ -44,16 +44,12 @@ void Scene::add_object(SceneObject object) {
 
 void Scene::add_light(std::shared_ptr<const Light> light) {
     const Light* raw = light.get();
-    m_lights.push_back(std::move(light));
-    const int index = int(m_lights.size()) - 1;
-    if (const auto* sphere = dynamic_cast<const SphereLight*>(raw)) {
-        m_spheres.push_back(sphere);
-        m_sphere_light_index.push_back(index);
-    } else if (const auto* env = dynamic_cast<const EnvironmentLight*>(raw)) {
+    if (const auto* env = dynamic_cast<const EnvironmentLight*>(raw)) {
         if (m_environment) throw Error("a scene has at most one environment light");
         m_environment = env;
-        m_environment_index = index;
     }
+    m_lights.push_back(std::move(light));
+    if (const auto* sphere = dynamic_cast<const SphereLight*>(raw)) m_spheres.push_back(sphere);
 }
 
 void Scene::commit() {
@@ -167,7 +163,8 @@ Hit Scene::intersect(const Ray& ray, double max_distance) const {
     const double su = u * map.scale_u, sv = v * map.scale_v;
     hit.uv = {c * su - s * sv, s * su + c * sv};
     if (map.rotation != 0 || map.scale_u != map.scale_v) {
-        // dP/du' = dP/du · c / scale_u − dP/dv · s / scale_v: the smooth frame's directions with
+        // dP/du' = dP/du · c / scale_u − dP/dv · s / scale_v, with the smooth frame's directions
+        // (dP/dv taken perpendicular to dP/du, on the side the triangle's dP/dv points to) and
         // the triangle's lengths of dP/du and dP/dv (which differ wherever the mesh's uv
         // parametrization stretches, as around a cylinder).
         const Vec3 p0 = vertex3(mesh.positions, tri[0]);
@@ -178,11 +175,14 @@ Hit Scene::intersect(const Ray& ray, double max_distance) const {
         const double du2 = uv_of(2, 0) - uv_of(0, 0), dv2 = uv_of(2, 1) - uv_of(0, 1);
         const double det = du1 * dv2 - du2 * dv1;
         double len_u = 1, len_v = 1;
+        Vec3 along_v = b;  // the direction of increasing v: b, unless seen from behind or mirrored
         if (std::abs(det) > 1e-20) {
+            const Vec3 dpdv = (e2 * du1 - e1 * du2) / det;
             len_u = length((e1 * dv2 - e2 * dv1) / det);
-            len_v = length((e2 * du1 - e1 * du2) / det);
+            len_v = length(dpdv);
+            if (dot(dpdv, b) < 0) along_v = -b;
         }
-        t = normalize(t * (c * len_u / map.scale_u) - b * (s * len_v / map.scale_v));
+        t = normalize(t * (c * len_u / map.scale_u) - along_v * (s * len_v / map.scale_v));
         b = cross(n, t);
     }
     hit.geometric_normal = ng;

@@ -3,8 +3,8 @@
 /// mapping, and lights, with Embree 3 answering the ray queries. Scenes are usually read from
 /// JSON (scene_file.h, documented in docs/scenes.md); tests build them in code.
 ///
-/// World space is right-handed with +y up. A hit's shading frame follows FORMATS.md: z = the
-/// interpolated shading normal, x = the tangent, the direction of increasing (mapped) u, made
+/// World space is right-handed with +y up. A hit's shading frame follows docs/conventions.md: z =
+/// the interpolated shading normal, x = the tangent, the direction of increasing (mapped) u, made
 /// orthogonal to z, y = z × x. Surfaces are two-sided: seen from behind, the frame is flipped
 /// (z and y negated), so a cloth's inside shows the same material.
 
@@ -94,9 +94,6 @@ class Scene {
     const std::vector<const SphereLight*>& sphere_lights() const { return m_spheres; }
     /// The environment light, if the scene has one (at most one).
     const EnvironmentLight* environment() const { return m_environment; }
-    /// The light index of each sphere light (parallel to sphere_lights()), for MIS.
-    int light_index_of_sphere(int sphere) const { return m_sphere_light_index[sphere]; }
-    int environment_light_index() const { return m_environment_index; }
 
   private:
     struct Accel;
@@ -104,9 +101,7 @@ class Scene {
     std::vector<SceneObject> m_objects;
     std::vector<std::shared_ptr<const Light>> m_lights;
     std::vector<const SphereLight*> m_spheres;
-    std::vector<int> m_sphere_light_index;
     const EnvironmentLight* m_environment = nullptr;
-    int m_environment_index = -1;
     double m_epsilon = 1e-4;
 };
 

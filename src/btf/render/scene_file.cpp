@@ -20,7 +20,8 @@ namespace btf::render {
 using nlohmann::json;
 
 std::shared_ptr<const Material> open_material_file(const std::filesystem::path& path) {
-    if (!std::filesystem::exists(path)) throw Error(path.string() + ": no such file");
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
     if (probe_package(path)) return open_material(path);
     if (ubo2014::probe(path)) return ubo2014::open_material(path);
     return open_sampled_material(path);  // raw data; errors name the file
@@ -171,6 +172,7 @@ class SceneReader {
     void read_render(const Node& n, SceneSettings& s) const {
         n.allow({"integrator", "spp", "time", "max_depth", "seed", "exposure"});
         const std::string integrator = n.string("integrator", "path");
+        s.integrator = integrator;
         if (integrator == "direct")
             s.options.integrator.max_depth = 1;
         else if (integrator == "path")
@@ -322,8 +324,12 @@ class SceneReader {
                 const int width = sky.integer("width", 1024, 16, 16384);
                 const Vec3 sun = {std::cos(elevation) * std::cos(azimuth), std::sin(elevation),
                                   std::cos(elevation) * std::sin(azimuth)};
-                map = std::make_shared<const EnvironmentMap>(
-                    EnvironmentMap::make_sky(width, width / 2, sun), scale, rotation);
+                try {
+                    map = std::make_shared<const EnvironmentMap>(
+                        EnvironmentMap::make_sky(width, width / 2, sun), scale, rotation);
+                } catch (const Error& e) {
+                    n.fail(e.what());
+                }
             }
             try {
                 scene.add_light(std::make_shared<EnvironmentLight>(map));
@@ -352,6 +358,8 @@ LoadedScene parse_scene(const std::string& text, const std::string& name,
         root = json::parse(text);
     } catch (const json::parse_error& e) {
         throw Error(fmt::format("{}: not valid JSON: byte {}: {}", name, e.byte, e.what()));
+    } catch (const json::exception& e) {  // e.g. a number beyond double's range
+        throw Error(fmt::format("{}: not valid JSON: {}", name, e.what()));
     }
     return SceneReader(name, base, options).read(root);
 }

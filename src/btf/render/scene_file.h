@@ -18,6 +18,7 @@ namespace btf::render {
 
 /// The "render" block of a scene: how to render it unless the command line says otherwise.
 struct SceneSettings {
+    std::string integrator = "path";  ///< "path" or "direct" (options.integrator.max_depth 1)
     RenderOptions options;
     double exposure = 0;  ///< EV for the tone-mapped PNG
 };

@@ -390,7 +390,9 @@ void SynthSource::read_image(int view, int light, Image& out) const {
                     dr *= trans, dg *= trans, db *= trans;
                     if (ci > 0) {
                         const float co = vd->coat_cos[i];
-                        const float ch = (ci + co) * inv_len;
+                        // co is clamped to kMinCos, so (ci + co)·inv_len can exceed 1 at grazing
+                        // angles, where t would reach 0 and D explode (values of 10⁶ seen).
+                        const float ch = std::min(1.0f, (ci + co) * inv_len);
                         const float t = ch * ch * (coat_a2 - 1) + 1;
                         const float dist = coat_a2 / (kPiF * t * t);
                         const float g2 = 1.0f / (1.0f + ld->coat_lambda[i] + vd->coat_lambda[i]);

@@ -50,4 +50,38 @@ void AtomicOutput::commit() {
     m_committed = true;
 }
 
+fs::path AtomicOutputSet::add(fs::path destination) {
+    const fs::path extension = destination.extension();
+    m_outputs.push_back(std::make_unique<AtomicOutput>(std::move(destination)));
+    fs::path written = m_outputs.back()->temp_path();
+    written += extension;
+    m_written.push_back(written);
+    return written;
+}
+
+void AtomicOutputSet::commit() {
+    for (size_t i = 0; i < m_outputs.size(); ++i) {
+        std::error_code ec;
+        if (!fs::exists(m_written[i], ec))
+            fail("{}: nothing was written", m_outputs[i]->destination().string());
+    }
+    for (size_t i = 0; i < m_outputs.size(); ++i) {
+        std::error_code ec;
+        fs::rename(m_written[i], m_outputs[i]->temp_path(), ec);
+        if (ec)
+            fail("{}: cannot move output into place: {}", m_outputs[i]->destination().string(),
+                 ec.message());
+        m_outputs[i]->commit();
+    }
+    m_committed = true;
+}
+
+AtomicOutputSet::~AtomicOutputSet() {
+    if (m_committed) return;
+    for (const fs::path& p : m_written) {
+        std::error_code ec;
+        fs::remove(p, ec);
+    }
+}
+
 }  // namespace btf

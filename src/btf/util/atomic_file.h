@@ -4,6 +4,8 @@
 /// never destroys what the user had at that path.
 
 #include <filesystem>
+#include <memory>
+#include <vector>
 
 namespace btf {
 
@@ -29,6 +31,28 @@ class AtomicOutput {
     std::filesystem::path m_destination;
     std::filesystem::path m_temp;
     bool m_directory;
+    bool m_committed = false;
+};
+
+/// Several output files that appear together or not at all (an image and its companions): each
+/// is written to the temporary name add() returns, and commit() moves them all into place. If
+/// the run fails before commit(), every temporary is removed and no destination is touched.
+class AtomicOutputSet {
+  public:
+    AtomicOutputSet() = default;
+    ~AtomicOutputSet();
+    AtomicOutputSet(const AtomicOutputSet&) = delete;
+    AtomicOutputSet& operator=(const AtomicOutputSet&) = delete;
+
+    /// Checks `destination` like AtomicOutput and returns where to write it now: a hidden name in
+    /// its folder that keeps its extension (image libraries choose the format by it).
+    std::filesystem::path add(std::filesystem::path destination);
+    /// Moves every file into place; each must have been written.
+    void commit();
+
+  private:
+    std::vector<std::unique_ptr<AtomicOutput>> m_outputs;
+    std::vector<std::filesystem::path> m_written;
     bool m_committed = false;
 };
 
