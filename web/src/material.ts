@@ -1,0 +1,312 @@
+// One material on the page: its stream, its decoding worker, and the textures and uniforms its
+// objects' shaders read. Worker results queue up here and are applied from the frame loop a few
+// at a time, so a burst of arriving components never stalls a frame.
+
+import * as THREE from "three";
+import type { FmfInfo, Layout } from "./fmf";
+import type { FromWorker, InterpUniforms, ToWorker } from "./protocol";
+import { TABLE_WIDTH } from "./protocol";
+import { openStream, type MaterialEntry } from "./stream";
+
+export interface MaterialState {
+  id: string;
+  bytes: number;
+  total: number;
+  components: number;
+  totalComponents: number;
+  /** Tables and at least one component (or the whole stream) are on the GPU: objects render. */
+  ready: boolean;
+  /** The stream ended (completely or at a section boundary). */
+  done: boolean;
+  complete: boolean;
+  error: string | null;
+  unsupported: boolean;
+  transport: string;
+  codec: string | null;
+  /** Sections decoded by the worker. */
+  sections: number;
+  /** Component sections applied to the textures, in order of arrival. */
+  applied: string[];
+}
+
+export interface GpuLimits {
+  maxTextureSize: number;
+  maxArrayLayers: number;
+}
+
+const emptyInterp = (): InterpUniforms => ({ R: 1, N: 1, T: 0, lifted: 0, triBase: 0, offBase: 0, cellBase: 0, invBase: 0 });
+
+export class MaterialView {
+  readonly state: MaterialState;
+  /** Shared by the ShaderMaterials of every object showing this material. */
+  readonly uniforms: Record<string, THREE.IUniform>;
+  info: FmfInfo | null = null;
+  layout: Layout | null = null;
+  /** Called when something changed that a new frame would show. */
+  onChange: () => void = () => {};
+  /** Called when bytes arrived (for the HUD; nothing to draw yet). */
+  onProgress: () => void = () => {};
+
+  /** null for a material the list already marks as another codec. */
+  private worker: Worker | null = null;
+  private pending: FromWorker[] = [];
+  private stop: (() => void) | null = null;
+  private a: THREE.DataArrayTexture | null = null;
+  private b: THREE.DataArrayTexture | null = null;
+  private means: THREE.DataArrayTexture | null = null;
+  private tabF: THREE.DataTexture | null = null;
+  private tabI: THREE.DataTexture | null = null;
+  private haveTables = false;
+  private evalId = 0;
+  private evalWaiting = new Map<number, (v: Float64Array) => void>();
+
+  constructor(
+    readonly entry: MaterialEntry,
+    workerUrl: string,
+    base: string,
+    transport: "auto" | "websocket" | "http",
+    private readonly limits: GpuLimits,
+  ) {
+    this.state = {
+      id: entry.id,
+      bytes: 0,
+      total: entry.bytes ?? 0,
+      components: 0,
+      totalComponents: 0,
+      ready: false,
+      done: false,
+      complete: false,
+      error: null,
+      unsupported: false,
+      transport: "",
+      codec: entry.codec ?? null,
+      sections: 0,
+      applied: [],
+    };
+    this.uniforms = {
+      uA: { value: null },
+      uB: { value: null },
+      uMean: { value: null },
+      uTabF: { value: null },
+      uTabI: { value: null },
+      uViews: { value: emptyInterp() },
+      uLights: { value: emptyInterp() },
+      uPlanes: { value: 1 },
+      uChannels: { value: 3 },
+      uNL: { value: 1 },
+      uLayerBase: { value: [0, 0, 0] },
+      uLayerCount: { value: [0, 0, 0] },
+      uColour: { value: 0 },
+      uLog: { value: 0 },
+      uLogEps: { value: 0.001 },
+      uSize: { value: [1, 1] },
+      uMipLevels: { value: 1 },
+      uEnvScale: { value: 1 },
+    };
+    if (entry.codec && entry.codec !== "fmf") {
+      // The list says so already: no need to download the package to refuse it.
+      this.state.unsupported = true;
+      this.state.error = `${entry.id}: codec '${entry.codec}' is not supported by the viewer (it renders fmf packages: btf compress --codec fmf)`;
+      this.state.done = true;
+      return;
+    }
+    const worker = new Worker(workerUrl);
+    this.worker = worker;
+    worker.onmessage = (e: MessageEvent<FromWorker>) => this.receive(e.data);
+    worker.onerror = (e: ErrorEvent) => this.setError(`${entry.id}: the decoding worker failed: ${e.message}`, false);
+    this.send({ type: "start", name: entry.id });
+    this.stop = openStream(
+      entry,
+      base,
+      {
+        total: (n) => {
+          this.state.total = n;
+        },
+        chunk: (data) => {
+          this.state.bytes += data.length;
+          // A copy the worker owns: the stream's buffers may be reused.
+          const copy = data.slice();
+          this.send({ type: "chunk", data: copy.buffer }, [copy.buffer]);
+          this.onProgress();
+        },
+        end: () => this.send({ type: "end" }),
+        error: (message) => this.setError(`${entry.id}: ${message}`, false),
+        transport: (kind) => {
+          this.state.transport = kind;
+        },
+      },
+      { transport },
+    );
+  }
+
+  private send(message: ToWorker, transfer: Transferable[] = []): void {
+    this.worker?.postMessage(message, transfer);
+  }
+
+  private setError(message: string, unsupported: boolean): void {
+    if (this.state.error) return;
+    this.state.error = message;
+    this.state.unsupported = unsupported;
+    this.state.done = true;
+    this.stop?.();
+    this.onChange();
+  }
+
+  private receive(msg: FromWorker): void {
+    switch (msg.type) {
+      case "evalResult": {
+        const resolve = this.evalWaiting.get(msg.id);
+        this.evalWaiting.delete(msg.id);
+        resolve?.(msg.values);
+        return;
+      }
+      case "error":
+        this.setError(msg.message, msg.unsupported);
+        return;
+      case "section":
+        this.state.sections = msg.index + 1;
+        return;
+      default:
+        this.pending.push(msg);
+        this.onChange();
+    }
+  }
+
+  /** Whether results wait to be applied. */
+  get hasPending(): boolean {
+    return this.pending.length > 0;
+  }
+
+  /**
+   * Applies queued worker results to the textures until `budgetMs` is spent (Infinity: all).
+   * Returns whether anything changed.
+   */
+  applyPending(budgetMs: number): boolean {
+    const start = performance.now();
+    let changed = false;
+    // Results that arrived before an error were checked and still show (a stream cut or damaged
+    // after some components renders with those).
+    while (this.pending.length > 0) {
+      this.apply(this.pending.shift()!);
+      changed = true;
+      if (performance.now() - start >= budgetMs) break;
+    }
+    return changed;
+  }
+
+  private apply(msg: FromWorker): void {
+    // A header the GPU cannot hold leaves no textures: nothing after it can be applied.
+    if (msg.type !== "header" && !this.info) return;
+    switch (msg.type) {
+      case "header":
+        return this.applyHeader(msg.info, msg.layout, msg.totalBytes);
+      case "tables": {
+        this.tabF = new THREE.DataTexture(msg.tabF, TABLE_WIDTH, msg.tabFHeight, THREE.RGBAFormat, THREE.FloatType);
+        this.tabI = new THREE.DataTexture(msg.tabI, TABLE_WIDTH, msg.tabIHeight, THREE.RGBAIntegerFormat, THREE.IntType);
+        this.tabI.internalFormat = "RGBA32I";
+        for (const t of [this.tabF, this.tabI]) {
+          t.minFilter = t.magFilter = THREE.NearestFilter;
+          t.generateMipmaps = false;
+          t.needsUpdate = true;
+        }
+        this.uniforms.uTabF.value = this.tabF;
+        this.uniforms.uTabI.value = this.tabI;
+        this.uniforms.uViews.value = msg.views;
+        this.uniforms.uLights.value = msg.lights;
+        this.uniforms.uEnvScale.value = msg.envScale;
+        this.haveTables = true;
+        return;
+      }
+      case "means": {
+        const tex = this.means!;
+        (tex.image.data as Float32Array).set(msg.data);
+        tex.needsUpdate = true;
+        return;
+      }
+      case "component": {
+        const L = this.layout!;
+        const aSize = L.aWidth * L.aHeight * 4, bSize = L.atlasWidth * L.atlasHeight * 4;
+        (this.a!.image.data as Float32Array).set(msg.aLayer, msg.layer * aSize);
+        (this.b!.image.data as Float32Array | Uint16Array).set(msg.bLayer, msg.layer * bSize);
+        this.a!.addLayerUpdate(msg.layer);
+        this.b!.addLayerUpdate(msg.layer);
+        this.a!.needsUpdate = true;
+        this.b!.needsUpdate = true;
+        const counts = this.uniforms.uLayerCount.value as number[];
+        counts[msg.plane] = Math.max(counts[msg.plane], (msg.k >> 2) + 1);
+        this.state.components = msg.loaded;
+        this.state.applied.push(msg.name);
+        if (this.haveTables) this.state.ready = true;
+        return;
+      }
+      case "done":
+        this.state.done = true;
+        this.state.complete = msg.complete;
+        if (this.haveTables && this.info) this.state.ready = true;
+        return;
+    }
+  }
+
+  private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number): void {
+    const { maxTextureSize, maxArrayLayers } = this.limits;
+    if (layout.atlasWidth > maxTextureSize || layout.atlasHeight > maxTextureSize || layout.aWidth > maxTextureSize || layout.aHeight > maxTextureSize)
+      return this.setError(
+        `${info.name}: ${info.width}×${info.height} texels with ${info.nV} views × ${info.nL} lights need textures larger than this GPU's ${maxTextureSize} texels`,
+        true,
+      );
+    if (layout.layers > maxArrayLayers)
+      return this.setError(`${info.name}: ${info.totalComponents} components need ${layout.layers} texture layers, more than this GPU's ${maxArrayLayers}`, true);
+    this.info = info;
+    this.layout = layout;
+    this.state.total = totalBytes;
+    this.state.totalComponents = info.totalComponents;
+    this.state.codec = "fmf";
+    const layers = layout.layers;
+    const make = (data: Float32Array | Uint16Array, w: number, h: number, d: number, format: THREE.PixelFormat, type: THREE.TextureDataType) => {
+      const t = new THREE.DataArrayTexture(data, w, h, d);
+      t.format = format;
+      t.type = type;
+      t.minFilter = t.magFilter = THREE.NearestFilter;
+      t.generateMipmaps = false;
+      t.unpackAlignment = 1;
+      t.needsUpdate = true;
+      return t;
+    };
+    this.a = make(new Float32Array(layout.aWidth * layout.aHeight * 4 * layers), layout.aWidth, layout.aHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+    const bSize = layout.atlasWidth * layout.atlasHeight * 4 * layers;
+    this.b = layout.half
+      ? make(new Uint16Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.HalfFloatType)
+      : make(new Float32Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+    this.means = make(new Float32Array(layout.aWidth * layout.aHeight * info.planes), layout.aWidth, layout.aHeight, info.planes, THREE.RedFormat, THREE.FloatType);
+    const u = this.uniforms;
+    u.uA.value = this.a;
+    u.uB.value = this.b;
+    u.uMean.value = this.means;
+    u.uPlanes.value = info.planes;
+    u.uChannels.value = info.channels;
+    u.uNL.value = info.nL;
+    u.uLayerBase.value = [layout.layerBase[0] ?? 0, layout.layerBase[1] ?? 0, layout.layerBase[2] ?? 0];
+    u.uLayerCount.value = [0, 0, 0];
+    u.uColour.value = info.colour === "rgb" ? 0 : info.colour === "decorrelated" ? 1 : 2;
+    u.uLog.value = info.log ? 1 : 0;
+    u.uLogEps.value = info.logEps;
+    u.uSize.value = [info.width, info.height];
+    u.uMipLevels.value = layout.mipLevels;
+  }
+
+  /** The CPU evaluator's values (linear RGB per query; see ToWorker "eval"). */
+  evaluate(queries: Float64Array, environment: boolean): Promise<Float64Array> {
+    const id = ++this.evalId;
+    return new Promise((resolve) => {
+      if (!this.worker) return resolve(new Float64Array(3 * (queries.length / 8)).fill(NaN));
+      this.evalWaiting.set(id, resolve);
+      this.send({ type: "eval", id, queries, environment });
+    });
+  }
+
+  dispose(): void {
+    this.stop?.();
+    this.worker?.terminate();
+    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI]) t?.dispose();
+  }
+}

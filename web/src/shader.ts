@@ -1,0 +1,400 @@
+// GLSL ES 3.00 of the BTF surface: the fragment shader evaluates the fmf factor model the way
+// src/btf/codecs/factor/material.cpp does (bilinear in space with wrapping and texel centres at
+// (i + 0.5) / W, barycentric over ≤ 3 views × ≤ 3 lights found through the AngularInterpolator
+// grid of docs/interpolation.md, interpolation on the plane values, then the inverse colour
+// transform), shades like the C++ path tracer's next-event estimation (src/btf/render/
+// integrator.cpp: radiance = f · E / π per delta light, the local frame of scene.cpp) and tone
+// maps like quality::tone_map (exposure, the ACES fit, then sRGB).
+
+export const MAX_LIGHTS = 4;
+
+export const vertexShader = /* glsl */ `
+precision highp float;
+precision highp int;
+
+uniform mat4 modelViewMatrix;
+uniform mat4 projectionMatrix;
+
+in vec3 position;
+in vec3 normal;
+in vec3 btfTangent;
+in vec2 uv;
+
+out vec3 vPosition;
+out vec3 vNormal;
+out vec3 vTangent;
+out vec2 vUv;
+
+void main() {
+  // Meshes are built in world space (the C++ renderer transforms its meshes the same way), so
+  // the model matrix is the identity and positions, normals and tangents pass through.
+  vPosition = position;
+  vNormal = normal;
+  vTangent = btfTangent;
+  vUv = uv;
+  gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+}
+`;
+
+export const fragmentShader = /* glsl */ `
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+precision highp sampler2DArray;
+precision highp isampler2D;
+
+#define MAX_LIGHTS ${MAX_LIGHTS}
+#define TABLE_WIDTH 1024
+#define PI 3.14159265358979
+
+struct Interp {
+  int R;
+  int N;
+  int T;
+  int lifted;
+  int triBase;
+  int offBase;
+  int cellBase;
+  int invBase;
+};
+
+uniform vec3 cameraPosition;
+
+uniform highp sampler2DArray uA;     // angular factors, 4 components per texel
+uniform highp sampler2DArray uB;     // eigen-texture atlases (level 0 + mip chain)
+uniform highp sampler2DArray uMean;  // row means
+uniform highp sampler2D uTabF;       // inverse matrices of both direction sets
+uniform highp isampler2D uTabI;      // triangles, cell offsets, cell triangles
+uniform Interp uViews;
+uniform Interp uLights;
+
+uniform int uPlanes;                 // 1 (rgb) or 3
+uniform int uChannels;               // 3 (rgb) or 1
+uniform int uNL;                     // lights of the sampling (column uNL = environment)
+uniform ivec3 uLayerBase;            // first layer of each plane
+uniform ivec3 uLayerCount;           // layers holding loaded components, per plane
+uniform int uColour;                 // 0 rgb, 1 decorrelated, 2 per-channel
+uniform int uLog;
+uniform float uLogEps;
+uniform ivec2 uSize;                 // material width, height
+uniform int uMipLevels;
+uniform int uMip;                    // 1: mip-mapped minification, 0: level 0 only (the C++ lookup)
+
+uniform vec2 uUvScale;
+uniform vec2 uUvRotation;            // cos, sin of the uv rotation
+uniform int uUvTurnsTangent;         // rotation != 0 or scale_u != scale_v (scene.cpp)
+
+uniform int uLightCount;
+uniform int uLightType[MAX_LIGHTS];  // 0 directional, 1 point
+uniform vec3 uLightVec[MAX_LIGHTS];  // direction towards the light, or its position
+uniform vec3 uLightPower[MAX_LIGHTS];// irradiance E, or intensity I
+uniform vec3 uEnvRadiance;           // uniform environment radiance (0: off)
+uniform float uEnvScale;
+
+uniform float uExposure;
+uniform int uDebug;                  // 0 shading; 1 uv, 2 normal, 3 tangent, 4 view dir, 5 light dir
+
+in vec3 vPosition;
+in vec3 vNormal;
+in vec3 vTangent;
+in vec2 vUv;
+
+out vec4 fragColor;
+
+ivec2 tableTexel(int i) { return ivec2(i % TABLE_WIDTH, i / TABLE_WIDTH); }
+int tableInt(int base, int k) { return texelFetch(uTabI, tableTexel(base + (k >> 2)), 0)[k & 3]; }
+
+// atan on [-1, 1] (Abramowitz & Stegun 4.4.49): the polynomial the C++ grid uses to find a cell.
+float approxAtan(float t) {
+  float t2 = t * t;
+  return t * (0.9998660 + t2 * (-0.3302995 + t2 * (0.1801410 + t2 * (-0.0851330 + t2 * 0.0208351))));
+}
+
+struct Weights {
+  ivec3 index;
+  vec3 weight;
+};
+
+Weights finishWeights(Interp s, int t, vec3 l) {
+  ivec3 v = texelFetch(uTabI, tableTexel(s.triBase + t), 0).xyz;
+  vec3 w = max(l, 0.0) * vec3(lessThan(v, ivec3(s.N)));
+  float sum = w.x + w.y + w.z;
+  Weights r;
+  r.index = v;
+  r.weight = sum > 0.0 ? w / sum : vec3(1.0, 0.0, 0.0);
+  return r;
+}
+
+vec3 barycentric(Interp s, int t, vec3 d) {
+  int o = s.invBase + 3 * t;
+  return vec3(dot(texelFetch(uTabF, tableTexel(o), 0).xyz, d),
+              dot(texelFetch(uTabF, tableTexel(o + 1), 0).xyz, d),
+              dot(texelFetch(uTabF, tableTexel(o + 2), 0).xyz, d));
+}
+
+// AngularInterpolator::weights (docs/interpolation.md), for a direction in the local frame.
+Weights lookupWeights(Interp s, vec3 d) {
+  d.z = max(d.z, 0.0);
+  if (s.lifted == 1) {
+    float r = length(d.xy);
+    d = r > 0.0 ? vec3(d.xy / r * 0.70710678, 0.70710678) : vec3(0.70710678, 0.0, 0.70710678);
+  }
+  if (!(dot(d, d) > 0.0)) d = vec3(1.0, 0.0, 0.0);
+  d = normalize(d);
+  // hemisphere -> square: Lambert (r = sqrt(1 - z)), then the inverse concentric map
+  float r = sqrt(max(1.0 - d.z, 0.0));
+  bool xMajor = abs(d.x) >= abs(d.y);
+  float major = xMajor ? d.x : d.y;
+  float minor = xMajor ? d.y : d.x;
+  float along = major < 0.0 ? -r : r;
+  float across = along * (4.0 / PI) * approxAtan(minor / (major != 0.0 ? major : 1.0));
+  vec2 ab = xMajor ? vec2(along, across) : vec2(across, along);
+  float half_ = 0.5 * float(s.R);
+  ivec2 c = min(ivec2((ab + 1.0) * half_), ivec2(s.R - 1));
+  int cell = c.y * s.R + c.x;
+  int first = tableInt(s.offBase, cell), last = tableInt(s.offBase, cell + 1);
+  for (int k = first; k < last; ++k) {
+    int t = tableInt(s.cellBase, k);
+    vec3 l = barycentric(s, t, d);
+    if (min(l.x, min(l.y, l.z)) >= -1e-6 * (l.x + l.y + l.z)) return finishWeights(s, t, l);
+  }
+  // No candidate contains the query (float rounding on an edge): the best triangle of all, as
+  // weights_brute_force does.
+  int best = 0;
+  float bestScore = -1e30;
+  vec3 bestL = vec3(1.0, 0.0, 0.0);
+  for (int t = 0; t < s.T; ++t) {
+    ivec3 v = texelFetch(uTabI, tableTexel(s.triBase + t), 0).xyz;
+    if (v.x >= s.N) continue;
+    vec3 l = barycentric(s, t, d);
+    float sum = l.x + l.y + l.z;
+    if (!(sum > 0.0)) continue;
+    float score = min(l.x, min(l.y, l.z)) / sum;
+    if (score > bestScore) { bestScore = score; best = t; bestL = l; }
+  }
+  return finishWeights(s, best, bestL);
+}
+
+// wrap_lerp of btf_lookup.h: the two texels and the weight of the second.
+void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
+  float n = float(size);
+  float x = c * n - 0.5;
+  if (isnan(x) || isinf(x)) x = -0.5;
+  if (!(x >= 0.0 && x < n)) x -= n * floor(x / n);
+  if (!(x >= 0.0 && x < n)) x = 0.0;
+  i0 = int(x);
+  t = x - float(i0);
+  i1 = i0 + 1 == size ? 0 : i0 + 1;
+}
+
+// One mip level's bilinear footprint in the atlas.
+struct Footprint {
+  ivec2 p00, p10, p01, p11;
+  vec4 w;
+};
+
+Footprint footprint(vec2 uv, int level) {
+  int w = max(1, uSize.x >> level), h = max(1, uSize.y >> level);
+  ivec2 origin = ivec2(0);
+  if (level > 0) {
+    origin.x = uSize.x;
+    for (int m = 1; m < level; ++m) origin.y += max(1, uSize.y >> m);
+  }
+  int x0, x1, y0, y1;
+  float tx, ty;
+  wrapLerp(uv.x, w, x0, x1, tx);
+  wrapLerp(uv.y, h, y0, y1, ty);
+  Footprint f;
+  f.p00 = origin + ivec2(x0, y0);
+  f.p10 = origin + ivec2(x1, y0);
+  f.p01 = origin + ivec2(x0, y1);
+  f.p11 = origin + ivec2(x1, y1);
+  f.w = vec4((1.0 - tx) * (1.0 - ty), tx * (1.0 - ty), (1.0 - tx) * ty, tx * ty);
+  return f;
+}
+
+vec4 sampleB(Footprint f, int layer) {
+  return f.w.x * texelFetch(uB, ivec3(f.p00, layer), 0) + f.w.y * texelFetch(uB, ivec3(f.p10, layer), 0) +
+         f.w.z * texelFetch(uB, ivec3(f.p01, layer), 0) + f.w.w * texelFetch(uB, ivec3(f.p11, layer), 0);
+}
+
+vec3 inverseColour(vec3 p) {
+  vec3 v = p;
+  if (uColour == 1) {
+    const float a = 0.57735026919, b = 0.70710678118, c = 0.40824829046;
+    v = vec3(a * p.x + b * p.y + c * p.z, a * p.x - b * p.y + c * p.z, a * p.x - 2.0 * c * p.z);
+  }
+  if (uLog == 1) v = exp(v) - uLogEps;
+  return v;
+}
+
+// quality::tone_map (exposure, Narkowicz's ACES fit, clamp), then the sRGB transfer.
+vec3 toneMap(vec3 linear) {
+  vec3 x = max(linear * exp2(uExposure), 0.0);
+  vec3 y = clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
+  return mix(1.055 * pow(y, vec3(1.0 / 2.4)) - 0.055, 12.92 * y, vec3(lessThanEqual(y, vec3(0.0031308))));
+}
+
+// Duff et al. 2017, as render::orthonormal_basis.
+vec3 anyTangent(vec3 n) {
+  float s = n.z >= 0.0 ? 1.0 : -1.0;
+  float a = -1.0 / (s + n.z);
+  float b = n.x * n.y * a;
+  return vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+}
+
+void main() {
+  // Derivatives first, in uniform control flow.
+  vec3 dpdx = dFdx(vPosition), dpdy = dFdy(vPosition);
+  vec2 dudx = dFdx(vUv), dudy = dFdy(vUv);
+  mat2 uvRotation = mat2(uUvRotation.x, uUvRotation.y, -uUvRotation.y, uUvRotation.x);
+  vec2 uvm = uvRotation * (vUv * uUvScale);
+  // Screen footprint of one pixel in level-0 texels of the mapped uv.
+  vec2 sx = uvRotation * (dudx * uUvScale) * vec2(uSize);
+  vec2 sy = uvRotation * (dudy * uUvScale) * vec2(uSize);
+
+  // The shading frame of Scene::intersect: interpolated normal, flipped when seen from behind
+  // (two-sided surfaces); interpolated tangent made orthogonal to it; bitangent = n × t.
+  vec3 n = normalize(vNormal);
+  if (!gl_FrontFacing) n = -n;
+  vec3 toCamera = cameraPosition - vPosition;
+  vec3 ng = normalize(cross(dpdx, dpdy));
+  if (dot(ng, toCamera) < 0.0) ng = -ng;  // the geometric normal, facing the camera
+  vec3 t = vTangent - n * dot(vTangent, n);
+  t = length(t) < 1e-8 ? anyTangent(n) : normalize(t);
+  vec3 bt = cross(n, t);
+
+  // The object's uv mapping: uv' = R(rotation) · (u · su, v · sv), with the tangent turned to the
+  // direction of growth of u' (dP/du and dP/dv from the triangle, as scene.cpp takes them).
+  if (uUvTurnsTangent == 1) {
+    float det = dudx.x * dudy.y - dudy.x * dudx.y;
+    float lenU = 1.0, lenV = 1.0;
+    vec3 alongV = bt;
+    if (abs(det) > 1e-20) {
+      vec3 dPdu = (dpdx * dudy.y - dpdy * dudx.y) / det;
+      vec3 dPdv = (dpdy * dudx.x - dpdx * dudy.x) / det;
+      lenU = length(dPdu);
+      lenV = length(dPdv);
+      if (dot(dPdv, bt) < 0.0) alongV = -bt;
+    }
+    t = normalize(t * (uUvRotation.x * lenU / uUvScale.x) - alongV * (uUvRotation.y * lenV / uUvScale.y));
+    bt = cross(n, t);
+  }
+  mat3 toLocal = transpose(mat3(t, bt, n));
+
+  vec3 wo = toLocal * normalize(toCamera);
+  if (wo.z < 1e-4) wo = normalize(vec3(wo.xy, 1e-4));  // silhouettes (integrator.cpp)
+
+  // Lights: direction, irradiance, and whether it reaches the surface.
+  Weights lw[MAX_LIGHTS];
+  vec3 irradiance[MAX_LIGHTS];
+  bool lit[MAX_LIGHTS];
+  vec3 firstWi = vec3(0.0);
+  for (int i = 0; i < MAX_LIGHTS; ++i) {
+    lit[i] = false;
+    irradiance[i] = vec3(0.0);
+    lw[i].index = ivec3(0);
+    lw[i].weight = vec3(0.0);
+    if (i >= uLightCount) continue;
+    vec3 wiWorld;
+    if (uLightType[i] == 1) {
+      vec3 d = uLightVec[i] - vPosition;
+      float d2 = dot(d, d);
+      wiWorld = d / sqrt(d2);
+      irradiance[i] = uLightPower[i] / d2;
+    } else {
+      wiWorld = normalize(uLightVec[i]);
+      irradiance[i] = uLightPower[i];
+    }
+    vec3 wi = toLocal * wiWorld;
+    if (i == 0) firstWi = wi;
+    if (dot(wiWorld, ng) <= 0.0 || wi.z <= 0.0) continue;
+    lit[i] = true;
+    lw[i] = lookupWeights(uLights, wi);
+  }
+
+  if (uDebug != 0) {
+    vec3 c = uDebug == 1 ? vec3(fract(uvm), 0.0)
+           : uDebug == 2 ? n * 0.5 + 0.5
+           : uDebug == 3 ? t * 0.5 + 0.5
+           : uDebug == 4 ? wo * 0.5 + 0.5
+           : firstWi * 0.5 + 0.5;
+    fragColor = vec4(c, 1.0);
+    return;
+  }
+
+  Weights vw = lookupWeights(uViews, wo);
+  bool env = uEnvRadiance.x > 0.0 || uEnvRadiance.y > 0.0 || uEnvRadiance.z > 0.0;
+
+  // Mip level from the screen footprint in level-0 texels; at or below 0 (magnification) the
+  // lookup is exactly the C++ bilinear one.
+  float lod = 0.0;
+  if (uMip == 1) {
+    float rho = max(length(sx), length(sy));
+    lod = rho > 1.0 ? min(log2(rho), float(uMipLevels - 1)) : 0.0;
+  }
+  int level0 = int(floor(lod));
+  float levelBlend = lod - float(level0);
+  int level1 = min(level0 + 1, uMipLevels - 1);
+  Footprint f0 = footprint(uvm, level0);
+  Footprint f1 = footprint(uvm, level1);
+
+  vec3 direct[MAX_LIGHTS];
+  for (int i = 0; i < MAX_LIGHTS; ++i) direct[i] = vec3(0.0);
+  vec3 ambient = vec3(0.0);
+  int C = uChannels;
+
+  for (int p = 0; p < uPlanes; ++p) {
+    // means (a texel-independent row value: the bilinear weights sum to 1)
+    for (int vi = 0; vi < 3; ++vi) {
+      float wv = vw.weight[vi];
+      if (wv <= 0.0) continue;
+      int view = vw.index[vi];
+      for (int i = 0; i < uLightCount; ++i) {
+        if (!lit[i]) continue;
+        for (int li = 0; li < 3; ++li) {
+          float w = wv * lw[i].weight[li];
+          if (w <= 0.0) continue;
+          int light = lw[i].index[li];
+          for (int ch = 0; ch < C; ++ch)
+            direct[i][p + ch] += w * texelFetch(uMean, ivec3(light * C + ch, view, p), 0).r;
+        }
+      }
+      if (env)
+        for (int ch = 0; ch < C; ++ch) ambient[p + ch] += wv * texelFetch(uMean, ivec3(uNL * C + ch, view, p), 0).r;
+    }
+    int count = uLayerCount[p];
+    for (int j = 0; j < count; ++j) {
+      int layer = uLayerBase[p] + j;
+      vec4 b = sampleB(f0, layer);
+      if (levelBlend > 0.0) b = mix(b, sampleB(f1, layer), levelBlend);
+      for (int vi = 0; vi < 3; ++vi) {
+        float wv = vw.weight[vi];
+        if (wv <= 0.0) continue;
+        int view = vw.index[vi];
+        for (int i = 0; i < uLightCount; ++i) {
+          if (!lit[i]) continue;
+          for (int li = 0; li < 3; ++li) {
+            float w = wv * lw[i].weight[li];
+            if (w <= 0.0) continue;
+            int light = lw[i].index[li];
+            for (int ch = 0; ch < C; ++ch)
+              direct[i][p + ch] += w * dot(texelFetch(uA, ivec3(light * C + ch, view, layer), 0), b);
+          }
+        }
+        if (env)
+          for (int ch = 0; ch < C; ++ch)
+            ambient[p + ch] += wv * dot(texelFetch(uA, ivec3(uNL * C + ch, view, layer), 0), b);
+      }
+    }
+  }
+
+  // BtfSurface::eval clamps negative values (a truncated factorization rings); each delta light
+  // adds f · E / π.
+  vec3 radiance = vec3(0.0);
+  for (int i = 0; i < uLightCount; ++i)
+    if (lit[i]) radiance += max(inverseColour(direct[i]), 0.0) * irradiance[i] / PI;
+  if (env) radiance += max(inverseColour(ambient), 0.0) * uEnvScale * uEnvRadiance;
+  fragColor = vec4(toneMap(radiance), 1.0);
+}
+`;

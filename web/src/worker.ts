@@ -1,0 +1,231 @@
+// The decoding worker: parses one material's package bytes as they arrive, checks and
+// decompresses each section, decodes the factors and packs them into texture layers, so that the
+// page only copies finished layers into textures and its frame loop never waits on decoding.
+
+import {
+  FmfModel,
+  UnsupportedMaterial,
+  blockRows,
+  columnBytes,
+  columnHalfBits,
+  decodeMeans,
+  makeLayout,
+  mipChain,
+  readFmfHeader,
+  type FmfInfo,
+  type Layout,
+} from "./fmf";
+import { floatToHalf } from "./half";
+import { lookup, readTablesSection, uniformEnvironmentWeights, type InterpTables } from "./interp";
+import { PackageStream, type DecodedSection, type PackageHeader } from "./package";
+import { TABLE_WIDTH, type FromWorker, type InterpUniforms, type ToWorker } from "./protocol";
+
+const ctx = self as unknown as {
+  postMessage(message: FromWorker, transfer?: Transferable[]): void;
+  onmessage: ((event: MessageEvent<ToWorker>) => void) | null;
+};
+
+let name = "material";
+let stream: PackageStream | null = null;
+let info: FmfInfo | null = null;
+let layout: Layout | null = null;
+let model: FmfModel | null = null;
+let tables: { views: InterpTables; lights: InterpTables } | null = null;
+/** Environment weight per light (normalized to sum 1 for log models). */
+let envWeights: Float64Array | null = null;
+let aLayers: Float32Array[] = [];
+let bLayers: (Float32Array | Uint16Array)[] = [];
+let failed = false;
+
+function post(message: FromWorker, transfer: Transferable[] = []): void {
+  ctx.postMessage(message, transfer);
+}
+
+function fail(e: unknown): void {
+  if (failed) return;
+  failed = true;
+  const err = e as Error;
+  const message = err && err.message ? err.message : String(e);
+  post({ type: "error", message: message.startsWith(name) ? message : `${name}: ${message}`, unsupported: e instanceof UnsupportedMaterial });
+}
+
+function onHeader(header: PackageHeader): void {
+  info = readFmfHeader(name, header.json);
+  layout = makeLayout(info);
+  model = new FmfModel(info);
+  const aSize = layout.aWidth * layout.aHeight * 4;
+  const bSize = layout.atlasWidth * layout.atlasHeight * 4;
+  aLayers = Array.from({ length: layout.layers }, () => new Float32Array(aSize));
+  bLayers = Array.from({ length: layout.layers }, () => (layout!.half ? new Uint16Array(bSize) : new Float32Array(bSize)));
+  post({
+    type: "header",
+    info,
+    layout,
+    totalBytes: header.totalBytes,
+    sections: header.sections.map((s) => ({ name: s.name, offset: header.headerBytes + s.offset, size: s.size })),
+  });
+}
+
+// Packs both direction sets into one float texture (inverse rows) and one int texture
+// (triangles, cell offsets, cell triangles), 4 values per texel.
+function packTables(views: InterpTables, lights: InterpTables): FromWorker & { type: "tables" } {
+  let fTexels = 0, iTexels = 0;
+  const place = (t: InterpTables): InterpUniforms => {
+    const u: InterpUniforms = {
+      R: t.R,
+      N: t.N,
+      T: t.T,
+      lifted: t.lifted ? 1 : 0,
+      invBase: fTexels,
+      triBase: iTexels,
+      offBase: iTexels + t.T,
+      cellBase: iTexels + t.T + Math.ceil((t.R * t.R + 1) / 4),
+    };
+    fTexels += 3 * t.T;
+    iTexels = u.cellBase + Math.ceil(t.M / 4);
+    return u;
+  };
+  const vu = place(views), lu = place(lights);
+  const tabFHeight = Math.ceil(fTexels / TABLE_WIDTH), tabIHeight = Math.ceil(iTexels / TABLE_WIDTH);
+  const tabF = new Float32Array(TABLE_WIDTH * tabFHeight * 4);
+  const tabI = new Int32Array(TABLE_WIDTH * tabIHeight * 4);
+  const fill = (t: InterpTables, u: InterpUniforms) => {
+    for (let i = 0; i < t.T; ++i)
+      for (let r = 0; r < 3; ++r)
+        for (let c = 0; c < 3; ++c) tabF[(u.invBase + 3 * i + r) * 4 + c] = t.inverse[9 * i + 3 * r + c];
+    for (let i = 0; i < t.T; ++i) for (let c = 0; c < 3; ++c) tabI[(u.triBase + i) * 4 + c] = t.triangles[3 * i + c];
+    tabI.set(t.cellOffsets, u.offBase * 4);
+    tabI.set(t.cellTriangles, u.cellBase * 4);
+  };
+  fill(views, vu);
+  fill(lights, lu);
+  const c = envWeights!;
+  let total = 0;
+  for (const x of c) total += x;
+  return { type: "tables", tabF, tabFHeight, tabI, tabIHeight, views: vu, lights: lu, envScale: info!.log ? total : 1 };
+}
+
+function onSection(s: DecodedSection): void {
+  post({ type: "section", name: s.entry.name, index: s.index, end: s.fileOffset + s.entry.size });
+  const i = info!, L = layout!, m = model!;
+  const sectionName = s.entry.name;
+  if (sectionName === "tables") {
+    tables = readTablesSection(s.data, i.nV, i.nL);
+    envWeights = uniformEnvironmentWeights(tables.lights);
+    if (i.log) {
+      // Log models interpolate log values: the environment term averages them with normalized
+      // weights and scales the decoded value by Σ c_l instead (a geometric-mean approximation).
+      let total = 0;
+      for (const x of envWeights) total += x;
+      for (let l = 0; l < envWeights.length; ++l) envWeights[l] /= total;
+    }
+    const msg = packTables(tables.views, tables.lights);
+    post(msg, [msg.tabF.buffer, msg.tabI.buffer]);
+    return;
+  }
+  if (sectionName === "means") {
+    if (!envWeights) throw new Error("section 'means' arrives before section 'tables' (the viewer needs the tables first)");
+    m.means = decodeMeans(i, s.data);
+    const C = i.channels, nL = i.nL, W = L.aWidth;
+    const data = new Float32Array(W * L.aHeight * i.planes);
+    m.means.forEach((mean, p) => {
+      if (!mean) return;
+      for (let v = 0; v < i.nV; ++v) {
+        const slot = i.slotOfView[v];
+        for (let ch = 0; ch < C; ++ch) {
+          let env = 0;
+          for (let l = 0; l < nL; ++l) {
+            const x = mean[(slot * nL + l) * C + ch];
+            data[(p * L.aHeight + v) * W + l * C + ch] = x;
+            env += envWeights![l] * x;
+          }
+          data[(p * L.aHeight + v) * W + nL * C + ch] = env;
+        }
+      }
+    });
+    post({ type: "means", data }, [data.buffer]);
+    return;
+  }
+  if (!/^b\d+\.k\d+$/.test(sectionName)) return; // sections of no concern to the viewer
+  if (!envWeights) throw new Error(`section '${sectionName}' arrives before section 'tables' (the viewer needs the tables first)`);
+  const { block, k } = m.addComponent(sectionName, s.data);
+  const layer = L.layerBase[block] + (k >> 2), lane = k & 3;
+  const a = m.a[block][k], b = m.b[block][k];
+  const C = i.channels, nL = i.nL, W = L.aWidth;
+  const aLayer = aLayers[layer];
+  for (let v = 0; v < i.nV; ++v) {
+    const slot = i.slotOfView[v];
+    for (let ch = 0; ch < C; ++ch) {
+      let env = 0;
+      for (let l = 0; l < nL; ++l) {
+        const x = a[(slot * nL + l) * C + ch];
+        aLayer[(v * W + l * C + ch) * 4 + lane] = x;
+        env += envWeights[l] * x;
+      }
+      aLayer[(v * W + nL * C + ch) * 4 + lane] = env;
+    }
+  }
+  const bLayer = bLayers[layer];
+  const mips = mipChain(L, b);
+  // f16 packages: level 0 keeps the stored half bits (exact); the averaged levels are rounded.
+  const level0Bits = L.half ? columnHalfBits(s.data, columnBytes("f16", blockRows(i)), i.width * i.height) : null;
+  mips.forEach((level, mi) => {
+    const r = L.mips[mi];
+    for (let y = 0; y < r.h; ++y)
+      for (let x = 0; x < r.w; ++x) {
+        const at = ((r.y + y) * L.atlasWidth + r.x + x) * 4 + lane;
+        const src = y * r.w + x;
+        if (level0Bits && mi === 0) bLayer[at] = level0Bits[src];
+        else bLayer[at] = L.half ? floatToHalf(level[src]) : level[src];
+      }
+  });
+  const aCopy = aLayer.slice(), bCopy = bLayer.slice();
+  post({ type: "component", name: sectionName, plane: block, k, layer, aLayer: aCopy, bLayer: bCopy, loaded: m.loadedComponents }, [
+    aCopy.buffer,
+    bCopy.buffer,
+  ]);
+}
+
+function evaluate(id: number, q: Float64Array, environment: boolean): void {
+  const n = Math.floor(q.length / 8);
+  const values = new Float64Array(3 * n).fill(NaN);
+  if (model && tables && envWeights && !failed) {
+    for (let j = 0; j < n; ++j) {
+      const o = 8 * j;
+      const vw = lookup(tables.views, q[o + 5], q[o + 6], q[o + 7]);
+      if (environment) {
+        values.set(model.evalEnvironment(q[o], q[o + 1], vw, envWeights), 3 * j);
+      } else {
+        const lw = lookup(tables.lights, q[o + 2], q[o + 3], q[o + 4]);
+        values.set(model.evalWeights(q[o], q[o + 1], vw, lw), 3 * j);
+      }
+    }
+  }
+  post({ type: "evalResult", id, values }, [values.buffer]);
+}
+
+ctx.onmessage = (event: MessageEvent<ToWorker>) => {
+  const msg = event.data;
+  try {
+    switch (msg.type) {
+      case "start":
+        name = msg.name;
+        stream = new PackageStream(name, { header: onHeader, section: onSection });
+        return;
+      case "chunk":
+        if (!failed && stream) stream.push(new Uint8Array(msg.data));
+        return;
+      case "end":
+        if (!failed && stream) {
+          const complete = stream.end();
+          post({ type: "done", complete, sections: stream.sectionsDone, declared: stream.header?.sections.length ?? 0 });
+        }
+        return;
+      case "eval":
+        evaluate(msg.id, msg.queries, msg.environment);
+        return;
+    }
+  } catch (e) {
+    fail(e);
+  }
+};

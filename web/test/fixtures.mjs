@@ -1,0 +1,113 @@
+// Test inputs made with the project's CLI (btf synth, btf compress) and the viewer's bundle, in
+// web/test-artifacts/. The btf binary is $BTF_BIN, else build/web/btf of the checkout, built
+// with the documented cmake/ninja commands when it is missing.
+
+import { execFileSync } from "node:child_process";
+import { existsSync, mkdirSync, readFileSync, rmSync, writeFileSync, copyFileSync } from "node:fs";
+import path from "node:path";
+import { fileURLToPath } from "node:url";
+
+export const WEB = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "..");
+export const REPO = path.resolve(WEB, "..");
+export const ARTIFACTS = path.join(WEB, "test-artifacts");
+export const FIXTURES = path.join(ARTIFACTS, "fixtures");
+
+const run = (cmd, args, opts = {}) => execFileSync(cmd, args, { stdio: ["ignore", "pipe", "pipe"], ...opts }).toString();
+
+/** The btf binary, building it when needed. */
+export function btfBinary() {
+  if (process.env.BTF_BIN) return process.env.BTF_BIN;
+  const bin = path.join(REPO, "build/web/btf");
+  if (!existsSync(bin)) {
+    console.log("# building build/web/btf (first run only)");
+    run("cmake", ["-S", REPO, "-B", path.join(REPO, "build/web"), "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release", "-DBTF_BUILD_BENCH=OFF", "-DBTF_BUILD_TESTS=OFF"], { stdio: "inherit" });
+    run("ninja", ["-C", path.join(REPO, "build/web"), "btf"], { stdio: "inherit" });
+  }
+  return bin;
+}
+
+/** The packages the tests use: id → { file, codec, ... }. Made once, reused while present. */
+export const PACKAGES = {
+  // the progressive-refinement material: fmf, rgb colour, f16 factors (the defaults), 8 components
+  woven_fabric: ["--codec", "fmf", "--components", "8"],
+  // decorrelated colour, log, u8 factors, row means
+  woven_declog: ["--codec", "fmf", "--components", "6", "-p", "colour=decorrelated", "-p", "log=true", "-p", "mean=true", "--quantize", "u8"],
+  // per-channel colour, f32 factors, stored raw (no zstd)
+  woven_perchannel: ["--codec", "fmf", "--components", "6", "-p", "colour=per-channel", "--quantize", "f32", "--zstd", "0"],
+  // a codec the viewer does not render
+  woven_pca: ["--codec", "pca-views", "--components", "2"],
+};
+
+export function makeFixtures() {
+  mkdirSync(FIXTURES, { recursive: true });
+  const bin = btfBinary();
+  const h5 = path.join(FIXTURES, "woven.h5");
+  if (!existsSync(h5)) run(bin, ["-q", "synth", "--preset", "woven_fabric", "--size", "32", "-o", h5]);
+  const out = {};
+  for (const [id, args] of Object.entries(PACKAGES)) {
+    const file = path.join(FIXTURES, `${id}.btfpkg`);
+    const stamp = file + ".args";
+    const wanted = JSON.stringify(args);
+    if (!existsSync(file) || !existsSync(stamp) || readFileSync(stamp, "utf8") !== wanted) {
+      rmSync(file, { force: true });
+      run(bin, ["-q", "compress", h5, ...args, "--no-error", "-o", file]);
+      writeFileSync(stamp, wanted);
+    }
+    out[id] = file;
+  }
+  // A package damaged in its third component section: the header and the first components read
+  // fine, then the checksum of that section fails.
+  const broken = path.join(FIXTURES, "woven_broken.btfpkg");
+  const bytes = readFileSync(out.woven_fabric);
+  const h = bytes.readUInt32LE(12);
+  const header = JSON.parse(bytes.subarray(24, 24 + h).toString("utf8"));
+  const s = header.sections.find((x) => x.name === "b0.k2");
+  const damaged = Buffer.from(bytes);
+  damaged[24 + h + s.offset + Math.floor(s.size / 2)] ^= 0x5a;
+  writeFileSync(broken, damaged);
+  out.woven_broken = broken;
+  return { bin, h5, packages: out };
+}
+
+/** The material list entry of a package (docs/protocol.md). */
+export function listEntry(id, file, stream) {
+  const bytes = readFileSync(file);
+  const h = bytes.readUInt32LE(12);
+  const header = JSON.parse(bytes.subarray(24, 24 + h).toString("utf8"));
+  const base = 24 + h;
+  return {
+    id,
+    name: id,
+    codec: header.codec,
+    width: header.width,
+    height: header.height,
+    views: header.views.theta.length,
+    lights: header.lights.theta.length,
+    bytes: bytes.length,
+    header_bytes: base,
+    sections: header.sections.map((x) => ({ name: x.name, offset: base + x.offset, size: x.size })),
+    package: `materials/${id}.btfpkg`,
+    stream: stream ? `stream/${id}` : null,
+  };
+}
+
+/**
+ * A bundle folder: the viewer built into it, materials/<id>.btfpkg, api/materials listing `ids`
+ * (with WebSocket streams when `streams`).
+ */
+export function makeSite(name, packages, ids, { streams = false, list = true } = {}) {
+  const site = path.join(ARTIFACTS, name);
+  rmSync(site, { recursive: true, force: true });
+  mkdirSync(path.join(site, "materials"), { recursive: true });
+  run(process.execPath, [path.join(WEB, "build.mjs"), site]);
+  const materials = [];
+  for (const id of ids) {
+    copyFileSync(packages[id], path.join(site, "materials", `${id}.btfpkg`));
+    materials.push(listEntry(id, packages[id], streams));
+  }
+  if (list) {
+    mkdirSync(path.join(site, "api"), { recursive: true });
+    writeFileSync(path.join(site, "api", "materials"), JSON.stringify({ protocol: 1, materials }, null, 1));
+  }
+  return site;
+}

@@ -1,0 +1,287 @@
+// Unit tests of the viewer's modules in node (node --test test/): the package reader against the
+// CLI's packages, the fmf decoder and CPU evaluator against `btf eval`, the interpolation tables,
+// the meshes' conventions and the URL parameters.
+
+import { test, before } from "node:test";
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
+import path from "node:path";
+import { pathToFileURL } from "node:url";
+import { build } from "esbuild";
+import { ARTIFACTS, FIXTURES, WEB, makeFixtures } from "./fixtures.mjs";
+
+let M; // the bundled modules
+let fx; // fixtures
+
+before(async () => {
+  fx = makeFixtures();
+  const out = path.join(ARTIFACTS, "unit", "modules.mjs");
+  mkdirSync(path.dirname(out), { recursive: true });
+  await build({
+    stdin: {
+      contents: ["xxh64", "half", "package", "interp", "fmf", "meshes", "scene", "reference"].map((m) => `export * from "./src/${m}";`).join("\n"),
+      resolveDir: WEB,
+      loader: "ts",
+    },
+    bundle: true,
+    format: "esm",
+    platform: "node",
+    outfile: out,
+    logLevel: "warning",
+  });
+  M = await import(pathToFileURL(out).href + `?t=${Date.now()}`);
+});
+
+const bytesOf = (file) => new Uint8Array(readFileSync(file));
+
+/** Reads a whole package through PackageStream in chunks of the given sizes (cycled). */
+function readAll(bytes, sizes = [bytes.length]) {
+  const sections = [];
+  let header = null;
+  const s = new M.PackageStream("x.btfpkg", { header: (h) => (header = h), section: (x) => sections.push(x) });
+  for (let at = 0, i = 0; at < bytes.length; ++i) {
+    const n = sizes[i % sizes.length];
+    s.push(bytes.subarray(at, at + n));
+    at += n;
+  }
+  const complete = s.end();
+  return { header, sections, complete };
+}
+
+test("xxh64 matches known digests", () => {
+  const enc = (t) => new TextEncoder().encode(t);
+  assert.equal(M.xxh64(enc("")), "ef46db3751d8e999");
+  assert.equal(M.xxh64(enc("a")), "d24ec4f1a98c6e5b");
+  assert.equal(M.xxh64(enc("abc")), "44bc2cf5ad770999");
+  // the 178-byte example package of docs/formats.md: its header digest
+  const header = '{"codec":"test","format":"btfpkg","sections":[{"coding":"raw","name":"data","offset":0,"raw_size":4,"size":4,"xxh64":"542620e3a2a92ed1"}],"version":1}';
+  assert.equal(M.xxh64(enc(header)), "d9d7af466fc922a9");
+  assert.equal(M.xxh64(new Uint8Array([1, 2, 3, 4])), "542620e3a2a92ed1");
+});
+
+test("half floats round-trip every finite bit pattern and round to nearest even", () => {
+  for (let h = 0; h < 65536; ++h) {
+    const f = M.halfToFloat(h);
+    if (Number.isNaN(f)) continue;
+    assert.equal(M.floatToHalf(f), h, `pattern ${h.toString(16)}`);
+  }
+  assert.equal(M.floatToHalf(1 + 2 ** -11), 0x3c00); // tie → even
+  assert.equal(M.floatToHalf(1 + 3 * 2 ** -11), 0x3c02); // tie → even (up)
+  assert.equal(M.floatToHalf(65520), 0x7c00); // rounds to infinity
+  assert.equal(M.floatToHalf(2 ** -25), 0); // tie between 0 and the smallest subnormal → 0
+  assert.equal(M.floatToHalf(3 * 2 ** -25), 2);
+});
+
+test("the package reader gives the same sections for any chunking, and checks them", () => {
+  const bytes = bytesOf(fx.packages.woven_fabric);
+  const whole = readAll(bytes);
+  assert.ok(whole.complete);
+  assert.equal(whole.header.totalBytes, bytes.length);
+  assert.deepEqual(whole.sections.map((s) => s.entry.name), ["tables", "means", ...Array.from({ length: 8 }, (_, k) => `b0.k${k}`)]);
+  for (const s of whole.sections) assert.equal(s.data.length, s.entry.raw_size);
+  for (const sizes of [[1], [7, 3, 1000], [65536]]) {
+    const r = readAll(bytes, sizes);
+    assert.equal(r.sections.length, whole.sections.length);
+    r.sections.forEach((s, i) => assert.deepEqual(s.data, whole.sections[i].data));
+  }
+  // raw sections (zstd level 0)
+  const raw = readAll(bytesOf(fx.packages.woven_perchannel));
+  assert.ok(raw.complete && raw.sections.every((s) => s.entry.coding === "raw"));
+});
+
+test("the package reader accepts clean prefixes and reports damage like the C++ reader", () => {
+  const bytes = bytesOf(fx.packages.woven_fabric);
+  const { header, sections } = readAll(bytes);
+  const cut = sections[3].fileOffset + sections[3].entry.size; // after b0.k1
+  const prefix = readAll(bytes.subarray(0, cut));
+  assert.equal(prefix.complete, false);
+  assert.equal(prefix.sections.length, 4);
+  const err = (data) => {
+    try {
+      readAll(data);
+    } catch (e) {
+      assert.ok(e instanceof M.PackageError, e.message);
+      return e.message;
+    }
+    assert.fail("no error");
+  };
+  assert.match(err(bytes.subarray(0, cut + 100)), /^x\.btfpkg: section 'b0\.k2' is truncated: 100 of \d+ bytes present \(from byte \d+\)$/);
+  assert.match(err(bytes.subarray(0, 17)), /truncated in the header: 17 of the 24 preamble bytes present/);
+  assert.match(err(bytes.subarray(0, 34)), /truncated in the header: 10 of its \d+ JSON bytes present \(from byte 24\)/);
+  const bad = Uint8Array.from(bytes);
+  bad[0] = 0x88;
+  assert.match(err(bad), /not a btfkit package \(bad magic\)/);
+  const damaged = bytesOf(fx.packages.woven_broken);
+  assert.match(err(damaged), /checksum mismatch in section 'b0\.k2' \(bytes \d+\.\.\d+\): stored [0-9a-f]{16}, computed [0-9a-f]{16}/);
+  const headerDamage = Uint8Array.from(bytes);
+  headerDamage[30] ^= 1;
+  assert.match(err(headerDamage), /header checksum mismatch/);
+  const trailing = new Uint8Array(bytes.length + 3);
+  trailing.set(bytes);
+  assert.match(err(trailing), /trailing bytes after the last section \(from byte \d+\)/);
+  const version = Uint8Array.from(bytes);
+  version[8] = 2;
+  assert.match(err(version), /unsupported package version 2/);
+  assert.equal(header.headerBytes, sections[0].fileOffset);
+  assert.throws(() => M.checkHeader("y", { format: "btfpkg", version: 1, sections: [{ name: "a", offset: 0, size: 1, raw_size: 1, coding: "raw", xxh64: "0123456789abcdef", extra: 1 }] }, 30), /y: header: section 0 has an unknown field 'extra'/);
+  assert.throws(() => M.checkHeader("y", { format: "btfpkg", version: 1, sections: [{ name: "a", offset: 0, size: 1, raw_size: 1, coding: "lz4", xxh64: "0123456789abcdef" }] }, 30), /coding "lz4", expected "raw" or "zstd"/);
+  assert.throws(() => M.checkHeader("y", { format: "btfpkg", version: 1, sections: [{ name: "a", offset: 1, size: 1, raw_size: 1, coding: "raw", xxh64: "0123456789abcdef" }] }, 30), /starts at offset 1 but the section before it ends at 0/);
+});
+
+function decode(file) {
+  const bytes = bytesOf(file);
+  const { header, sections } = readAll(bytes);
+  const info = M.readFmfHeader(path.basename(file), header.json);
+  const model = new M.FmfModel(info);
+  let tables = null;
+  for (const s of sections) {
+    if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
+    else if (s.entry.name === "means") model.means = M.decodeMeans(info, s.data);
+    else model.addComponent(s.entry.name, s.data);
+  }
+  return { info, model, tables, bytes, sections };
+}
+
+const dirVec = (thetaDeg, phiDeg) => {
+  const t = (thetaDeg * Math.PI) / 180, p = (phiDeg * Math.PI) / 180;
+  return [Math.sin(t) * Math.cos(p), Math.sin(t) * Math.sin(p), Math.cos(t)];
+};
+
+function cliEval(file, uv, light, view) {
+  const out = execFileSync(fx.bin, ["-q", "eval", file, "--uv", uv.join(","), "--light", light.join(","), "--view", view.join(",")]).toString();
+  return out.trim().split(/\s+/).map(Number);
+}
+
+// A small fixed set of queries: texel centres, seams, between directions, below the outer ring.
+const QUERIES = [
+  { uv: [0.3, 0.7], light: [30, 40], view: [20, 200] },
+  { uv: [0, 0], light: [0, 0], view: [45, 90] },
+  { uv: [1.25, -0.4], light: [80, 300], view: [10, 10] },
+  { uv: [0.015625, 0.984375], light: [60, 15], view: [75, 345] },
+  { uv: [0.51, 0.49], light: [88, 170], view: [52, 33] },
+];
+
+test("the CPU evaluator matches `btf eval` for every colour, log and quantization variant", () => {
+  for (const id of ["woven_fabric", "woven_declog", "woven_perchannel"]) {
+    const { model, tables } = decode(fx.packages[id]);
+    for (const q of QUERIES) {
+      const wi = dirVec(...q.light), wo = dirVec(...q.view);
+      const got = model.evalWeights(q.uv[0], q.uv[1], M.lookup(tables.views, ...wo), M.lookup(tables.lights, ...wi));
+      const want = cliEval(fx.packages[id], q.uv, q.light, q.view);
+      for (let c = 0; c < 3; ++c)
+        assert.ok(Math.abs(got[c] - want[c]) <= 2e-5 + 1e-4 * Math.abs(want[c]), `${id} ${JSON.stringify(q)}: ${got} vs ${want}`);
+    }
+  }
+});
+
+test("a prefix of a package evaluates like the C++ reader's prefix (components present only)", () => {
+  const { bytes, sections } = decode(fx.packages.woven_declog);
+  const cut = sections[4].fileOffset + sections[4].entry.size; // tables, means and 3 components
+  const file = path.join(FIXTURES, "woven_declog.prefix.btfpkg");
+  writeFileSync(file, bytes.subarray(0, cut));
+  const { model, tables } = decode(file);
+  assert.equal(model.loadedComponents, 3);
+  for (const q of QUERIES.slice(0, 3)) {
+    const got = model.evalWeights(q.uv[0], q.uv[1], M.lookup(tables.views, ...dirVec(...q.view)), M.lookup(tables.lights, ...dirVec(...q.light)));
+    const want = cliEval(file, q.uv, q.light, q.view);
+    for (let c = 0; c < 3; ++c) assert.ok(Math.abs(got[c] - want[c]) <= 2e-5 + 1e-4 * Math.abs(want[c]), `${got} vs ${want}`);
+  }
+});
+
+test("other codecs and model layouts are refused as unsupported", () => {
+  const { header } = readAll(bytesOf(fx.packages.woven_pca));
+  assert.throws(() => M.readFmfHeader("woven_pca", header.json), (e) => e instanceof M.UnsupportedMaterial && /codec 'pca-views' is not supported by the viewer/.test(e.message));
+  const fmf = readAll(bytesOf(fx.packages.woven_fabric)).header.json;
+  const clustered = structuredClone(fmf);
+  clustered.model.clusters = 4;
+  assert.throws(() => M.readFmfHeader("m", clustered), (e) => e instanceof M.UnsupportedMaterial && /4 texel clusters/.test(e.message));
+  const lab = structuredClone(fmf);
+  lab.model.colour = "lab";
+  assert.throws(() => M.readFmfHeader("m", lab), (e) => e instanceof M.UnsupportedMaterial);
+});
+
+test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {
+  const { info, tables } = decode(fx.packages.woven_fabric);
+  for (let i = 0; i < info.nL; ++i) {
+    const t = info.lights.theta[i], p = info.lights.phi[i];
+    const w = M.lookup(tables.lights, Math.sin(t) * Math.cos(p), Math.sin(t) * Math.sin(p), Math.cos(t));
+    const k = w.weight.indexOf(Math.max(...w.weight));
+    assert.equal(w.index[k], i);
+    assert.ok(w.weight[k] > 1 - 1e-5);
+  }
+  let seed = 1;
+  const rand = () => ((seed = (seed * 16807) % 2147483647) / 2147483647);
+  for (let n = 0; n < 2000; ++n) {
+    const d = [rand() * 2 - 1, rand() * 2 - 1, rand() * 2 - 1.2];
+    const w = M.lookup(tables.views, ...d);
+    const sum = w.weight.reduce((a, b) => a + b, 0);
+    assert.ok(Math.abs(sum - 1) < 1e-6 && w.weight.every((x) => x >= 0));
+    w.index.forEach((x, j) => assert.ok(w.weight[j] === 0 || (x >= 0 && x < info.nV)));
+  }
+  // a uniform environment's weights integrate the hemisphere: Σ c_l = (1/π) · 2π
+  const c = M.uniformEnvironmentWeights(tables.lights, 64);
+  assert.ok(Math.abs(c.reduce((a, b) => a + b, 0) - 2) < 1e-6);
+});
+
+test("the meshes follow mesh.h: outward winding, tangents along +u, orientation-preserving uv", () => {
+  for (const shape of M.SHAPES) {
+    const mesh = M.transformMesh(M.makeShape({ shape, segments: 24 }), M.objectTransform([0.5, -1, 2], [10, 20, 30], [1, 1.5, 1]));
+    const P = mesh.positions, N = mesh.normals, T = mesh.tangents, UV = mesh.uvs, I = mesh.indices;
+    const v = (a, i) => [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+    const sub = (a, b) => a.map((x, k) => x - b[k]);
+    const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for (let t = 0; t < I.length; t += 3) {
+      const [a, b, c] = [I[t], I[t + 1], I[t + 2]];
+      const e1 = sub(v(P, b), v(P, a)), e2 = sub(v(P, c), v(P, a));
+      const ng = cross(e1, e2);
+      if (Math.hypot(...ng) < 1e-9) continue;
+      assert.ok(dot(ng, v(N, a)) > 0, `${shape}: triangle ${t / 3} winds inward`);
+      // dP/du and dP/dv from the triangle; their cross product points outward
+      const du1 = UV[2 * b] - UV[2 * a], dv1 = UV[2 * b + 1] - UV[2 * a + 1];
+      const du2 = UV[2 * c] - UV[2 * a], dv2 = UV[2 * c + 1] - UV[2 * a + 1];
+      const det = du1 * dv2 - du2 * dv1;
+      if (Math.abs(det) < 1e-12) continue;
+      const dpdu = e1.map((x, k) => (x * dv2 - e2[k] * dv1) / det);
+      const dpdv = e2.map((x, k) => (x * du1 - e1[k] * du2) / det);
+      assert.ok(dot(cross(dpdu, dpdv), ng) > 0, `${shape}: uv mirrored at triangle ${t / 3}`);
+      assert.ok(dot(dpdu, v(T, a)) > 0, `${shape}: tangent against +u at triangle ${t / 3}`);
+    }
+    for (let i = 0; i < P.length / 3; ++i) assert.ok(Math.abs(dot(v(N, i), v(T, i))) < 1e-5);
+  }
+  const sphere = M.makeSphere(1, 8);
+  assert.equal(sphere.positions.length / 3, 9 * 3 + 2 * 8);
+  assert.equal(sphere.indices.length / 3, 2 * 8 + 2 * 8 * 2);
+});
+
+test("URL parameters and scene JSON fix the scene", () => {
+  const s = M.sceneFromParams(new URLSearchParams("material=m&object=torus&camera=1,2,3&target=0,0.5,0&fov=30&size=320x200&light=0,1,0&irradiance=2&env=0.25&exposure=-1&mip=0&deterministic=1&uvscale=2,3&uvrot=15"));
+  assert.equal(s.objects[0].shape, "torus");
+  assert.equal(s.objects[0].material, "m");
+  assert.deepEqual(s.camera.position, [1, 2, 3]);
+  assert.deepEqual([s.camera.width, s.camera.height], [320, 200]);
+  assert.deepEqual(s.lights, [{ type: "directional", vector: [0, 1, 0], power: [2, 2, 2] }]);
+  assert.deepEqual(s.environment, [0.25, 0.25, 0.25]);
+  assert.deepEqual(s.objects[0].uv_scale, [2, 3]);
+  assert.equal(s.objects[0].uv_rotation, 15);
+  assert.ok(s.deterministic && !s.mip);
+  const scene = {
+    camera: { position: [0, 1.2, 4], look_at: [0, 0.4, 0], fov: 35, width: 64, height: 48 },
+    render: { exposure: 0.5 },
+    objects: [{ shape: "cylinder", radius: 0.5, uv_scale: 4, material: { type: "btf", file: "dir/cloth.btfpkg" } }],
+    lights: [{ type: "point", position: [0, 4, 1], intensity: 12 }],
+  };
+  const j = M.sceneFromParams(new URLSearchParams({ scene: JSON.stringify(scene) }));
+  assert.equal(j.objects[0].material, "cloth");
+  assert.deepEqual(j.objects[0].uv_scale, [4, 4]);
+  assert.equal(j.objects[0].radius, 0.5);
+  assert.deepEqual(j.lights[0], { type: "point", vector: [0, 4, 1], power: [12, 12, 12] });
+  assert.equal(j.exposure, 0.5);
+  assert.throws(() => M.sceneFromParams(new URLSearchParams("object=cube")), /unknown shape 'cube'/);
+  assert.throws(() => M.sceneFromParams(new URLSearchParams("camera=1,2")), /expected 3 comma-separated numbers/);
+});
+
+test("the TypeScript sources type-check (tsc --noEmit)", () => {
+  execFileSync(process.execPath, [path.join(WEB, "node_modules/typescript/bin/tsc"), "--noEmit", "-p", WEB], { stdio: "pipe" });
+});
