@@ -16,6 +16,7 @@ packages=(
   libembree-dev libtinyobjloader-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev
   libxxhash-dev libzstd-dev libdeflate-dev
+  libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
   python3 python3-h5py python3-numpy
 )

@@ -45,8 +45,8 @@ fs::path BtfCli::s_dir;
 TEST_F(BtfCli, HelpListsEverySubcommand) {
     const CliResult r = run("--help");
     EXPECT_EQ(r.code, 0);
-    const char* subs[] = {"info", "convert", "synth",  "slice",  "compress", "decompress",
-                          "eval", "render",  "report", "codecs", "formats"};
+    const char* subs[] = {"info",   "convert", "synth", "slice",  "compress", "decompress", "eval",
+                          "render", "report",  "serve", "bundle", "codecs",   "formats"};
     for (const char* sub : subs) EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
     for (const char* sub : subs) EXPECT_EQ(run(std::string(sub) + " --help").code, 0) << sub;
 }

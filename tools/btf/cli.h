@@ -94,5 +94,7 @@ Command register_eval(CLI::App& app, GlobalOptions& global);
 Command register_quality(CLI::App& app, GlobalOptions& global);
 Command register_report(CLI::App& app, GlobalOptions& global);
 Command register_render(CLI::App& app, GlobalOptions& global);
+Command register_serve(CLI::App& app, GlobalOptions& global);
+Command register_bundle(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli

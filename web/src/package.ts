@@ -5,7 +5,7 @@
 // line.
 
 import { decompress } from "fzstd";
-import { xxh64 } from "./xxh64";
+import xxhash from "xxhash-wasm";
 
 export const MAGIC = [0x89, 0x42, 0x54, 0x46, 0x50, 0x4b, 0x47, 0x0a];
 export const PREAMBLE_BYTES = 24;
@@ -40,6 +40,20 @@ export interface DecodedSection {
   data: Uint8Array;
   /** Where the section's stored bytes start in the file. */
   fileOffset: number;
+}
+
+/** XXH64 (seed 0) of some bytes as 16 lowercase hex digits, the form package headers store. */
+export type Checksum = (data: Uint8Array) => string;
+
+let checksum: Promise<Checksum> | null = null;
+
+/**
+ * The packages' checksum, XXH64 from xxhash-wasm. Its WebAssembly module is instantiated on the
+ * first call (asynchronously); every later call returns the same promise.
+ */
+export function loadChecksum(): Promise<Checksum> {
+  checksum ??= xxhash().then(({ h64Raw }) => (data: Uint8Array) => h64Raw(data, 0n).toString(16).padStart(16, "0"));
+  return checksum;
 }
 
 /** A package that cannot be read; the message is one line starting with the package's name. */
@@ -140,6 +154,7 @@ function zstdContentSize(data: Uint8Array): number | null {
 /**
  * Feeds on the package's bytes in order and calls `handlers.header` once the header is complete
  * and `handlers.section` for each complete section, in file order. Throws PackageError.
+ * `xxh64` checks the header and the sections: the function `loadChecksum` resolves to.
  */
 export class PackageStream {
   /** Bytes pushed so far. */
@@ -160,6 +175,7 @@ export class PackageStream {
   constructor(
     readonly name: string,
     private readonly handlers: PackageHandlers,
+    private readonly xxh64: Checksum,
   ) {}
 
   private fail(what: string): never {
@@ -244,7 +260,7 @@ export class PackageStream {
 
   private readHeader(): void {
     const bytes = this.headerBuffer!;
-    const computed = xxh64(bytes);
+    const computed = this.xxh64(bytes);
     if (computed !== this.headerChecksum)
       this.fail(`header checksum mismatch (bytes ${PREAMBLE_BYTES}..${PREAMBLE_BYTES + bytes.length}): stored ${this.headerChecksum}, computed ${computed}`);
     let json: unknown;
@@ -280,7 +296,7 @@ export class PackageStream {
   }
 
   private decodeSection(entry: SectionEntry, stored: Uint8Array, at: number): Uint8Array {
-    const computed = xxh64(stored);
+    const computed = this.xxh64(stored);
     if (computed !== entry.xxh64)
       this.fail(`checksum mismatch in section '${entry.name}' (bytes ${at}..${at + entry.size}): stored ${entry.xxh64}, computed ${computed}`);
     if (entry.coding === "raw") return stored;

@@ -17,7 +17,7 @@ import {
 } from "./fmf";
 import { floatToHalf } from "./half";
 import { lookup, readTablesSection, uniformEnvironmentWeights, type InterpTables } from "./interp";
-import { PackageStream, type DecodedSection, type PackageHeader } from "./package";
+import { PackageStream, loadChecksum, type Checksum, type DecodedSection, type PackageHeader } from "./package";
 import { TABLE_WIDTH, type FromWorker, type InterpUniforms, type ToWorker } from "./protocol";
 
 const ctx = self as unknown as {
@@ -36,6 +36,12 @@ let envWeights: Float64Array | null = null;
 let aLayers: Float32Array[] = [];
 let bLayers: (Float32Array | Uint16Array)[] = [];
 let failed = false;
+
+// The checksum's WebAssembly module is instantiated once, when the worker starts; messages that
+// arrive before it is ready wait in `pending` and are then handled in order.
+let xxh64: Checksum | null = null;
+let checksumError = "";
+let pending: ToWorker[] | null = [];
 
 function post(message: FromWorker, transfer: Transferable[] = []): void {
   ctx.postMessage(message, transfer);
@@ -204,13 +210,13 @@ function evaluate(id: number, q: Float64Array, environment: boolean): void {
   post({ type: "evalResult", id, values }, [values.buffer]);
 }
 
-ctx.onmessage = (event: MessageEvent<ToWorker>) => {
-  const msg = event.data;
+function handle(msg: ToWorker): void {
   try {
     switch (msg.type) {
       case "start":
         name = msg.name;
-        stream = new PackageStream(name, { header: onHeader, section: onSection });
+        if (!xxh64) throw new Error(`cannot check the package: the XXH64 WebAssembly module (xxhash-wasm) did not load: ${checksumError}`);
+        stream = new PackageStream(name, { header: onHeader, section: onSection }, xxh64);
         return;
       case "chunk":
         if (!failed && stream) stream.push(new Uint8Array(msg.data));
@@ -228,4 +234,26 @@ ctx.onmessage = (event: MessageEvent<ToWorker>) => {
   } catch (e) {
     fail(e);
   }
+}
+
+function drainPending(): void {
+  const queued = pending ?? [];
+  pending = null;
+  for (const msg of queued) handle(msg);
+}
+
+loadChecksum().then(
+  (c) => {
+    xxh64 = c;
+    drainPending();
+  },
+  (e: unknown) => {
+    checksumError = e instanceof Error ? e.message : String(e);
+    drainPending();
+  },
+);
+
+ctx.onmessage = (event: MessageEvent<ToWorker>) => {
+  if (pending) pending.push(event.data);
+  else handle(event.data);
 };

@@ -12,6 +12,7 @@ import { build } from "esbuild";
 import { ARTIFACTS, FIXTURES, WEB, makeFixtures } from "./fixtures.mjs";
 
 let M; // the bundled modules
+let xxh64; // the package checksum (xxhash-wasm, loaded once)
 let fx; // fixtures
 
 before(async () => {
@@ -20,7 +21,7 @@ before(async () => {
   mkdirSync(path.dirname(out), { recursive: true });
   await build({
     stdin: {
-      contents: ["xxh64", "half", "package", "interp", "fmf", "meshes", "scene", "reference"].map((m) => `export * from "./src/${m}";`).join("\n"),
+      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference"].map((m) => `export * from "./src/${m}";`).join("\n"),
       resolveDir: WEB,
       loader: "ts",
     },
@@ -31,6 +32,7 @@ before(async () => {
     logLevel: "warning",
   });
   M = await import(pathToFileURL(out).href + `?t=${Date.now()}`);
+  xxh64 = await M.loadChecksum();
 });
 
 const bytesOf = (file) => new Uint8Array(readFileSync(file));
@@ -39,7 +41,7 @@ const bytesOf = (file) => new Uint8Array(readFileSync(file));
 function readAll(bytes, sizes = [bytes.length]) {
   const sections = [];
   let header = null;
-  const s = new M.PackageStream("x.btfpkg", { header: (h) => (header = h), section: (x) => sections.push(x) });
+  const s = new M.PackageStream("x.btfpkg", { header: (h) => (header = h), section: (x) => sections.push(x) }, xxh64);
   for (let at = 0, i = 0; at < bytes.length; ++i) {
     const n = sizes[i % sizes.length];
     s.push(bytes.subarray(at, at + n));
@@ -49,15 +51,22 @@ function readAll(bytes, sizes = [bytes.length]) {
   return { header, sections, complete };
 }
 
-test("xxh64 matches known digests", () => {
+test("the package checksum (xxhash-wasm) gives the known XXH64 digests as 16 hex digits", async () => {
   const enc = (t) => new TextEncoder().encode(t);
-  assert.equal(M.xxh64(enc("")), "ef46db3751d8e999");
-  assert.equal(M.xxh64(enc("a")), "d24ec4f1a98c6e5b");
-  assert.equal(M.xxh64(enc("abc")), "44bc2cf5ad770999");
+  assert.equal(xxh64(enc("")), "ef46db3751d8e999");
+  assert.equal(xxh64(enc("a")), "d24ec4f1a98c6e5b");
+  assert.equal(xxh64(enc("abc")), "44bc2cf5ad770999");
   // the 178-byte example package of docs/formats.md: its header digest
   const header = '{"codec":"test","format":"btfpkg","sections":[{"coding":"raw","name":"data","offset":0,"raw_size":4,"size":4,"xxh64":"542620e3a2a92ed1"}],"version":1}';
-  assert.equal(M.xxh64(enc(header)), "d9d7af466fc922a9");
-  assert.equal(M.xxh64(new Uint8Array([1, 2, 3, 4])), "542620e3a2a92ed1");
+  assert.equal(xxh64(enc(header)), "d9d7af466fc922a9");
+  assert.equal(xxh64(new Uint8Array([1, 2, 3, 4])), "542620e3a2a92ed1");
+  // leading zero digits are kept
+  assert.equal(xxh64(enc("14754")), "000245515fa5fc5d");
+  // a view into a larger buffer hashes only its own bytes
+  const padded = enc("xxabcxx");
+  assert.equal(xxh64(padded.subarray(2, 5)), "44bc2cf5ad770999");
+  // the module is instantiated once
+  assert.equal(await M.loadChecksum(), xxh64);
 });
 
 test("half floats round-trip every finite bit pattern and round to nearest even", () => {

@@ -1,0 +1,137 @@
+// btf serve [PKG|DIR ...] [--port 8080] [--bind 127.0.0.1] [--web DIR]: the materials over HTTP
+// and WebSockets for the web viewer (docs/protocol.md) until SIGINT or SIGTERM. Without
+// packages it serves the built-in demo material, made once and kept in the cache folder.
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "btf/codecs/codec.h"
+#include "btf/io/package.h"
+#include "btf/stream/catalog.h"
+#include "btf/stream/server.h"
+#include "btf/synth/synth.h"
+#include "btf/util/error.h"
+#include "cli.h"
+
+namespace btf::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// $BTF_CACHE_DIR, else $XDG_CACHE_HOME/btfkit (the XDG base directory rule: only an absolute
+// path counts), else ~/.cache/btfkit.
+fs::path cache_folder() {
+    if (const char* dir = std::getenv("BTF_CACHE_DIR"); dir && *dir) return dir;
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg == '/')
+        return fs::path(xdg) / "btfkit";
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return fs::path(home) / ".cache" / "btfkit";
+    fail("no cache folder for the demo material: set BTF_CACHE_DIR (or HOME)");
+}
+
+// The demo: woven_fabric, 128² texels, ubo81 sampling, fmf with 32 components in half floats
+// (about 2 MiB). Made on the first start (a minute or so) and reused afterwards; a damaged or
+// different cached file is made again.
+fs::path demo_package(const GlobalOptions& global) {
+    constexpr int kSize = 128;
+    const fs::path folder = cache_folder() / "demo";
+    const fs::path path = folder / "woven_fabric.btfpkg";
+    std::error_code ec;
+    if (fs::exists(path, ec)) {
+        try {
+            const stream::CatalogEntry entry = stream::describe_package(path);
+            if (entry.codec == "fmf" && entry.width == kSize && entry.height == kSize &&
+                entry.views == 81 && entry.lights == 81)
+                return path;
+        } catch (const Cancelled&) {
+            throw;
+        } catch (const Error&) {
+            // Damaged: made again below.
+        }
+    }
+    fs::create_directories(folder, ec);
+    if (ec) fail("{}: cannot create the cache folder: {}", folder.string(), ec.message());
+    if (!global.quiet)
+        std::fprintf(stderr,
+                     "btf serve: making the demo material (woven_fabric, %dx%d texels, fmf) in "
+                     "%s; later starts reuse it\n",
+                     kSize, kSize, folder.string().c_str());
+    const DirectionSet& set = DirectionSet::ubo81();
+    const auto source = synth::make("woven_fabric", kSize, Sampling{set, set}, 1);
+    Progress progress = make_progress(global);
+    Package package = find_codec("fmf").encode(
+        *source, Params{{"components", "32"}, {"quantize", "f16"}}, progress);
+    // Written to a temporary name and renamed: a second server starting at the same time, or an
+    // interrupted first start, never sees a partial file.
+    write_package(path, package, {}, progress);
+    return path;
+}
+
+}  // namespace
+
+Command register_serve(CLI::App& app, GlobalOptions& global) {
+    struct Args {
+        std::vector<std::string> inputs;
+        int port = 8080;
+        std::string bind = "127.0.0.1", web;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* cmd =
+        app.add_subcommand("serve",
+                           "Serve compressed materials to the web viewer over HTTP and WebSockets "
+                           "(docs/protocol.md) until Ctrl-C");
+    cmd->add_option("inputs", args->inputs,
+                    "btfkit packages (*.btfpkg) or folders of them; none: the built-in demo "
+                    "material (woven_fabric, made once into the cache folder: $BTF_CACHE_DIR, "
+                    "$XDG_CACHE_HOME/btfkit or ~/.cache/btfkit)");
+    cmd->add_option("--port", args->port, "TCP port (0: any free port)")
+        ->check(CLI::Range(0, 65535));
+    cmd->add_option("--bind", args->bind, "address to listen on (0.0.0.0: every interface)");
+    cmd->add_option("--web", args->web,
+                    std::string("the web viewer's folder (default: ") + BTF_WEB_DIR +
+                        ", the viewer's build output)");
+
+    return {cmd, [args, &global] {
+                stream::ServerOptions options;
+                options.bind = args->bind;
+                options.port = static_cast<uint16_t>(args->port);
+                options.threads = global.threads;
+                if (!args->web.empty()) {
+                    std::error_code ec;
+                    if (!fs::is_directory(args->web, ec))
+                        fail("{}: --web: no such folder", args->web);
+                    options.web_root = args->web;
+                } else {
+                    // The viewer's build output; until it is built, `/` shows the built-in page.
+                    options.web_root = BTF_WEB_DIR;
+                }
+                std::vector<fs::path> inputs(args->inputs.begin(), args->inputs.end());
+                if (inputs.empty()) inputs.push_back(demo_package(global));
+                stream::Catalog catalog = stream::Catalog::build(inputs);
+                const size_t count = catalog.size();
+                stream::Server server(std::move(catalog), options);
+
+                // The handlers go in before the address is announced: whoever reads the line may
+                // signal at once.
+                boost::asio::io_context signals_context;
+                boost::asio::signal_set signals(signals_context, SIGINT, SIGTERM);
+                signals.async_wait([](const boost::system::error_code&, int) {});
+                server.start();
+                std::printf("serving %zu material%s at %s\n", count, count == 1 ? "" : "s",
+                            server.url().c_str());
+                std::fflush(stdout);
+                // A signal that came before the handlers were installed went to main()'s handler.
+                if (!Progress::all_cancelled()) signals_context.run();
+                // Removing the handlers restores the default action: a second Ctrl-C during the
+                // shutdown grace period ends the process at once.
+                signals.clear();
+                server.stop();
+            }};
+}
+
+}  // namespace btf::cli
