@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs the Debian packages btfkit needs to build, test and run its demo. Idempotent: when
-# everything is present it changes nothing and needs no network. Run as root or with sudo.
+# Installs the Debian packages btfkit needs to build, test and run its demo, and the web viewer's
+# npm packages. Idempotent: when everything is present it changes nothing and needs no network.
+# Run as root or with sudo.
 # With --bench it also installs what the benchmarks compare against (scikit-learn with OpenBLAS).
 set -euo pipefail
 
@@ -19,7 +20,13 @@ packages=(
   libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
   python3 python3-h5py python3-numpy
+  chromium
 )
+# The web viewer is built with node and npm; any node ≥ 18 will do (Debian's, or one installed
+# from elsewhere, whose package may not be called nodejs).
+if ! command -v node > /dev/null || ! command -v npm > /dev/null; then
+  packages+=(nodejs npm)
+fi
 if [ "${1:-}" = "--bench" ]; then
   packages+=(python3-sklearn libopenblas0-pthread)
 fi
@@ -33,13 +40,23 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "bootstrap: all ${#packages[@]} packages present"
-  exit 0
+else
+  echo "bootstrap: installing ${missing[*]}"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  echo "bootstrap: done"
 fi
 
-echo "bootstrap: installing ${missing[*]}"
-sudo=""
-if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$sudo apt-get update -qq
-$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
-echo "bootstrap: done"
+# The viewer's npm packages, exactly as web/package-lock.json pins them; only when the lock file
+# changed since the last install (npm writes node_modules/.package-lock.json).
+web="$(cd "$(dirname "$0")/.." && pwd)/web"
+if [ ! -f "$web/node_modules/.package-lock.json" ] ||
+   [ "$web/package-lock.json" -nt "$web/node_modules/.package-lock.json" ]; then
+  echo "bootstrap: installing the viewer's npm packages (web/package-lock.json)"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+else
+  echo "bootstrap: the viewer's npm packages are present"
+fi
