@@ -33,14 +33,8 @@ using test::CliResult;
 using test::run;
 using test::TempFolder;
 
-std::string read_file(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_file(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
+using test::read_file;
+using test::write_file;
 
 // A package with the header fields the material list reads; `views` directions each way.
 void make_package(const fs::path& path, const std::string& codec = "test", int size = 8,

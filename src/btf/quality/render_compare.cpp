@@ -64,6 +64,7 @@ RenderComparison compare_renders(const Image& a, const Image& b, double exposure
     r.psnr = mse > 0 ? 10 * std::log10(1 / mse) : INFINITY;
     r.heat_max = heat_max > 0 ? heat_max : nice_ceil(std::max(1.0, percentile(de, 0.99)));
     r.heat_map = quality::heat_map(de, ta.width(), ta.height(), r.heat_max);
+    r.de2000 = std::move(de);
     return r;
 }
 

@@ -11,6 +11,7 @@
 ///  - PSNR of the tone-mapped RGB values (peak 1).
 
 #include <string>
+#include <vector>
 
 #include "btf/core/image.h"
 
@@ -19,8 +20,9 @@ namespace btf::quality {
 struct RenderComparison {
     double de2000_mean = 0, de2000_p95 = 0;
     double ssim = 1;
-    double psnr = 0;  ///< dB; infinite for identical images
-    Image heat_map;   ///< per-pixel CIEDE2000 through the report's colour map, 0 … heat_max
+    double psnr = 0;            ///< dB; infinite for identical images
+    std::vector<float> de2000;  ///< per pixel, row-major
+    Image heat_map;             ///< de2000 through the report's colour map, 0 … heat_max
     double heat_max = 0;
 };
 

@@ -325,7 +325,7 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
 
     // The reference rendered once; every configuration's render is compared with it.
     Image reference_render;
-    std::vector<Image> config_renders;
+    std::vector<std::vector<float>> render_de;  // per configuration: ΔE00 per pixel
     if (options.render) {
         fs::create_directory(root / "renders");
         StageForwarder stages(progress, "reference: ");
@@ -415,7 +415,7 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
                 report.render_heat_max = std::max(report.render_heat_max, cmp.heat_max);
                 write_image(root / r.image, tone_map(rendered, report.render_exposure));
                 result.render = r;
-                config_renders.push_back(std::move(rendered));
+                render_de.push_back(cmp.de2000);
             }
             if (!options.keep_packages) fs::remove(package_path);
         } catch (const Cancelled&) {
@@ -447,9 +447,8 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
     // The renders' heat maps on one scale, so that they compare.
     for (int i = 0; i < n && options.render; ++i)
         write_image(root / report.configs[size_t(i)].render->heat_map,
-                    compare_renders(reference_render, config_renders[size_t(i)],
-                                    report.render_exposure, report.render_heat_max)
-                        .heat_map);
+                    heat_map(render_de[size_t(i)], reference_render.width(),
+                             reference_render.height(), report.render_heat_max));
     if (options.render)
         write_text(root / "colorbar-render.svg", colorbar_svg(report.render_heat_max, "\u0394E00"));
     if (!options.keep_packages) fs::remove(root / "packages");

@@ -18,14 +18,8 @@ using json = nlohmann::json;
 using test::error_of;
 using test::TempFolder;
 
-std::string read_file(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_file(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
+using test::read_file;
+using test::write_file;
 
 // A package of raw sections of the given sizes, with the extent and sampling fields every codec
 // writes (2 views, 3 lights, 8×6 texels).

@@ -23,6 +23,7 @@
 #include "btf/io/package.h"
 #include "btf/stream/catalog.h"
 #include "btf/synth/synth.h"
+#include "btf/testing/support.h"
 
 namespace btf::stream {
 namespace {
@@ -36,14 +37,8 @@ using tcp = net::ip::tcp;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-std::string read_file(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_file(const fs::path& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-}
+using test::read_file;
+using test::write_file;
 
 std::string str(beast::string_view s) {
     return std::string(s.data(), s.size());

@@ -1,12 +1,14 @@
 #pragma once
-// Test support (GoogleTest only; not part of the library): a fresh folder per test, and the
-// message of an expected btf::Error.
+// Test support (GoogleTest only; not part of the library): a fresh folder per test, the
+// message of an expected btf::Error, and whole files read and written as strings.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "btf/util/error.h"
@@ -50,6 +52,17 @@ std::string error_of(Fn&& fn) {
     }
     ADD_FAILURE() << "expected a btf::Error";
     return {};
+}
+
+/// The bytes of a file ("" when it cannot be read).
+inline std::string read_file(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Writes `bytes` to a file, replacing it.
+inline void write_file(const std::filesystem::path& path, const std::string& bytes) {
+    std::ofstream(path, std::ios::binary) << bytes;
 }
 
 }  // namespace btf::test
