@@ -40,6 +40,7 @@ format-check: bootstrap
 
 bench: build
 	@bash scripts/bootstrap.sh --bench
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target benches
 	@bash bench/run_all.sh $(BUILD_DIR)
 
 clean:
