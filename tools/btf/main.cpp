@@ -59,13 +59,14 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", global.quiet, "no progress output");
 
     const std::vector<Command> commands = {
-        register_info(app, global),     register_convert(app, global),
-        register_synth(app, global),    register_slice(app, global),
-        register_compress(app, global), register_decompress(app, global),
-        register_eval(app, global),     register_quality(app, global),
-        register_report(app, global),   register_render(app, global),
-        register_serve(app, global),    register_bundle(app, global),
-        register_codecs(app, global),   register_formats(app, global),
+        register_info(app, global),       register_convert(app, global),
+        register_synth(app, global),      register_slice(app, global),
+        register_compress(app, global),   register_decompress(app, global),
+        register_eval(app, global),       register_quality(app, global),
+        register_report(app, global),     register_render(app, global),
+        register_image_diff(app, global), register_serve(app, global),
+        register_bundle(app, global),     register_codecs(app, global),
+        register_formats(app, global),
     };
 
     try {

@@ -1,5 +1,5 @@
 // End-to-end tests of `btf render`: a scene with a compressed material renders to PNG and EXR;
-// bad scenes give one line, a non-zero exit and no image.
+// bad scenes give one line, a non-zero exit and no image. And `btf image-diff`.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -9,7 +9,10 @@
 #include <fstream>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "btf/core/image.h"
+#include "btf/quality/render_compare.h"
 #include "btf/testing/cli.h"
 
 namespace btf {
@@ -134,6 +137,52 @@ TEST_F(RenderCli, BadScenesGiveOneLineAndNoImage) {
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("missing.json: cannot open the scene file"), std::string::npos)
         << r.output;
+}
+
+// btf image-diff: PNGs are compared as shown, EXRs tone-mapped first; sizes must agree.
+TEST_F(RenderCli, ImageDiffComparesPicturesAsShown) {
+    // A linear picture and its tone-mapped PNG look the same; a darker PNG does not.
+    Image linear(24, 16, 3);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 24; ++x)
+            linear.set_rgb(x, y, {0.05f * float(x), 0.1f * float(y), 0.4f});
+    write_image(path("linear.exr"), linear);
+    write_image(path("shown.png"), quality::tone_map(linear, 1.0));
+    Image darker = quality::tone_map(linear, 1.0);
+    for (float& v : darker.values()) v *= 0.8f;
+    write_image(path("darker.png"), darker);
+
+    CliResult r =
+        run("image-diff " + path("shown.png") + " " + path("linear.exr") + " --exposure 1 --json");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const auto same = nlohmann::json::parse(r.output);
+    EXPECT_LT(same["de2000_mean"].get<double>(), 0.3) << r.output;  // 8-bit rounding only
+    EXPECT_GT(same["ssim"].get<double>(), 0.999) << r.output;
+
+    r = run("image-diff " + path("darker.png") + " " + path("linear.exr") + " --exposure 1 -o " +
+            path("diff.png"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("ΔE00 mean"), std::string::npos) << r.output;
+    const Image side = read_image(path("diff.png"));
+    EXPECT_EQ(side.width(), 3 * 24 + 2 * 4);  // A | B | heat map
+    EXPECT_EQ(side.height(), 16);
+    r = run("image-diff " + path("darker.png") + " " + path("linear.exr") + " --exposure 1 --json");
+    const auto differ = nlohmann::json::parse(r.output);
+    EXPECT_GT(differ["de2000_mean"].get<double>(), 3.0) << r.output;
+
+    // A wrong size, a missing file and a float output are one-line errors without output.
+    write_image(path("small.png"), Image(8, 8, 3, 0.5f));
+    r = run("image-diff " + path("shown.png") + " " + path("small.png") + " -o " + path("no.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("small.png: 8 × 8 pixels, but"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(path("no.png")));
+    r = run("image-diff " + path("shown.png") + " " + path("absent.png"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.output.find("absent.png"), std::string::npos) << r.output;
+    r = run("image-diff " + path("shown.png") + " " + path("shown.png") + " -o " + path("d.exr"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("d.exr: the comparison is a picture"), std::string::npos) << r.output;
 }
 
 }  // namespace

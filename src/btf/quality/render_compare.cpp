@@ -4,6 +4,8 @@
 #include <cmath>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "btf/core/color.h"
 #include "btf/quality/colormap.h"
 #include "btf/quality/metrics.h"
@@ -40,7 +42,13 @@ Image tone_map(const Image& linear, double exposure) {
 RenderComparison compare_renders(const Image& a, const Image& b, double exposure, double heat_max) {
     if (a.width() != b.width() || a.height() != b.height())
         throw Error("compare_renders: the images differ in size");
-    const Image ta = tone_map(a, exposure), tb = tone_map(b, exposure);
+    return compare_displays(tone_map(a, exposure), tone_map(b, exposure), heat_max);
+}
+
+RenderComparison compare_displays(const Image& ta, const Image& tb, double heat_max) {
+    if (ta.width() != tb.width() || ta.height() != tb.height())
+        throw Error(fmt::format("the images differ in size: {} × {} and {} × {}", ta.width(),
+                                ta.height(), tb.width(), tb.height()));
     const int64_t n = ta.num_pixels();
     const size_t count = static_cast<size_t>(n);
     std::vector<float> de(count), ya(count), yb(count);

@@ -30,10 +30,17 @@ struct RenderComparison {
 /// values in [0, 1], still linear (write_image() applies the sRGB transfer for PNG).
 Image tone_map(const Image& linear, double exposure = 0);
 
-/// Compares two linear renders of equal size. `heat_max` ≤ 0 picks a round maximum above the
-/// 99th percentile of ΔE00. Throws btf::Error if the sizes differ.
+/// Compares two linear renders of equal size: compare_displays() of their tone_map()s.
+/// `heat_max` ≤ 0 picks a round maximum above the 99th percentile of ΔE00. Throws btf::Error if
+/// the sizes differ.
 RenderComparison compare_renders(const Image& a, const Image& b, double exposure = 0,
                                  double heat_max = 0);
+
+/// Compares two pictures as a display shows them: display values in [0, 1], linear (an 8-bit
+/// sRGB file read with read_image(), or tone_map() of a render). Throws btf::Error if the sizes
+/// differ.
+RenderComparison compare_displays(const Image& a_display, const Image& b_display,
+                                  double heat_max = 0);
 
 /// A, B and the heat map side by side, separated by 4-pixel gaps (display values).
 Image side_by_side(const Image& a_display, const Image& b_display, const Image& heat_map);
