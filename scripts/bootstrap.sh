@@ -20,7 +20,7 @@ packages=(
   libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
   python3 python3-h5py python3-numpy
-  chromium
+  chromium nginx
 )
 # The web viewer is built with node and npm; any node ≥ 18 will do (Debian's, or one installed
 # from elsewhere, whose package may not be called nodejs).
@@ -46,6 +46,14 @@ else
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   export DEBIAN_FRONTEND=noninteractive
   $sudo apt-get update -qq
+  # nginx is only for the tests, which start their own on a free port: keep Debian's service from
+  # starting on port 80 (a policy-rc.d that denies, unless the machine has one already).
+  policy=/usr/sbin/policy-rc.d
+  if [ ! -e "$policy" ]; then
+    printf '#!/bin/sh\nexit 101\n' | $sudo tee "$policy" > /dev/null
+    $sudo chmod 755 "$policy"
+    trap '$sudo rm -f "$policy"' EXIT
+  fi
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
   echo "bootstrap: done"
 fi

@@ -55,6 +55,8 @@ export interface SceneSpec {
   deterministic: boolean;
   transport: "auto" | "websocket" | "http";
   hud: boolean;
+  /** Keep the pixels of every frame that shows more data in the timeline (tests, benchmarks). */
+  snapshots: boolean;
   debug: number;
   /** Where the material list is, relative to the page. */
   api: string;
@@ -102,6 +104,7 @@ export function defaultScene(): SceneSpec {
     deterministic: false,
     transport: "auto",
     hud: true,
+    snapshots: false,
     debug: 0,
     api: "api/materials",
   };
@@ -189,6 +192,7 @@ export function sceneFromParams(params: URLSearchParams): SceneSpec {
     s.transport = t;
   }
   if (get("hud") !== null) s.hud = get("hud") !== "0";
+  if (get("snapshots") !== null) s.snapshots = get("snapshots") !== "0";
   if (get("debug") !== null) {
     const d = DEBUG_MODES.indexOf(get("debug")!);
     if (d < 1) throw new SceneError(`URL parameter 'debug': one of ${DEBUG_MODES.slice(1).join(", ")}`);

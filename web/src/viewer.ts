@@ -49,6 +49,22 @@ function formatBytes(n: number): string {
   return `${(n / 1024 / 1024).toFixed(2)} MiB`;
 }
 
+/**
+ * A frame that showed more of the material than the frame before: the first frame, and each
+ * frame after components arrived or a stream completed.
+ */
+export interface TimelineEntry {
+  /** performance.now() (ms since the page's navigation started) once the frame was submitted,
+   * or, with snapshots, once its pixels were read back. */
+  t: number;
+  frame: number;
+  components: number;
+  bytes: number;
+  complete: boolean;
+  /** RGBA, top row first, base64 (with `snapshots=1`). */
+  pixels?: string;
+}
+
 class Viewer {
   readonly renderer: THREE.WebGLRenderer;
   readonly gl: WebGL2RenderingContext;
@@ -61,6 +77,7 @@ class Viewer {
   listError: string | null = null;
   frames = 0;
   frameMs = 0;
+  readonly timeline: TimelineEntry[] = [];
   renderMs = 0;
   private lastFrame = 0;
   private renderQueued = false;
@@ -291,7 +308,18 @@ class Viewer {
     this.renderer.render(this.scene, this.camera);
     this.renderMs = performance.now() - t0;
     this.frames += 1;
+    this.record();
     updateHud(this);
+  }
+
+  private record(): void {
+    const s = this.state;
+    const last = this.timeline[this.timeline.length - 1];
+    if (last && last.components === s.components && last.complete === s.complete) return;
+    const entry: TimelineEntry = { t: 0, frame: this.frames, components: s.components, bytes: s.bytes, complete: s.complete };
+    if (this.spec.snapshots) entry.pixels = this.pixels().data;
+    entry.t = performance.now();
+    this.timeline.push(entry);
   }
 
   private requestRenderIfPending(m: MaterialView): void {
@@ -547,6 +575,7 @@ async function main(): Promise<void> {
     setView: (p: ViewParams) => viewer.setView(p),
     render: () => viewer.renderNow(),
     pixels: () => viewer.pixels(),
+    timeline: () => viewer.timeline,
     reference: (points: [number, number][]) => viewer.reference(points),
     trace: (points: [number, number][]) => viewer.trace(points),
     setMaterial: (index: number, id: string) => viewer.setObjectMaterial(index, id),

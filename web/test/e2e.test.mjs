@@ -6,21 +6,18 @@
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { existsSync, mkdirSync, writeFileSync } from "node:fs";
-import { createServer } from "node:net";
+import { mkdirSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { chromium } from "playwright-core";
+import { freePort, launchBrowser, meanDiff, openPage as open, pixels, render, state } from "./browser.mjs";
 import { ARTIFACTS, listEntry, makeFixtures, makeSite } from "./fixtures.mjs";
 import { startServer } from "./server.mjs";
 
-const CHROMIUM = process.env.CHROMIUM ?? "/usr/bin/chromium";
 const SHOTS = path.join(ARTIFACTS, "e2e");
 const IDS = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_pca", "woven_broken"];
 
 let fx, site, server, browser;
 
 before(async () => {
-  if (!existsSync(CHROMIUM)) throw new Error(`${CHROMIUM} is missing: apt-get install -y chromium (or set CHROMIUM)`);
   fx = makeFixtures();
   site = makeSite("site", fx.packages, IDS);
   // A second list naming the WebSocket streams (what btf serve answers).
@@ -30,10 +27,7 @@ before(async () => {
   );
   mkdirSync(SHOTS, { recursive: true });
   server = await startServer(site);
-  browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ["--headless=new", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--no-sandbox"],
-  });
+  browser = await launchBrowser();
 });
 
 after(async () => {
@@ -41,29 +35,7 @@ after(async () => {
   await server?.close();
 });
 
-async function openPage(query, { init } = {}) {
-  const page = await browser.newPage();
-  const problems = [];
-  page.on("pageerror", (e) => problems.push(e.message));
-  if (init) await page.addInitScript(init);
-  await page.goto(`${server.url}index.html?${query}`);
-  return { page, problems };
-}
-
-const state = (page) => page.evaluate(() => window.btfViewer.state);
-const render = (page) => page.evaluate(() => window.btfViewer.render());
-
-async function pixels(page) {
-  const p = await page.evaluate(() => window.btfViewer.pixels());
-  return { width: p.width, height: p.height, data: Buffer.from(p.data, "base64") };
-}
-
-/** Mean absolute difference of two frames over the RGB channels, in 8-bit levels. */
-function meanDiff(a, b) {
-  let sum = 0;
-  for (let i = 0; i < a.data.length; i += 4) sum += Math.abs(a.data[i] - b.data[i]) + Math.abs(a.data[i + 1] - b.data[i + 1]) + Math.abs(a.data[i + 2] - b.data[i + 2]);
-  return sum / ((a.data.length / 4) * 3);
-}
+const openPage = (query, options) => open(browser, server.url, query, options);
 
 /**
  * Checks the frame against the CPU reference at a grid of pixels. The rasterizer snaps vertices
@@ -266,10 +238,7 @@ async function messageOf(query, options) {
 
 test("the page says clearly what went wrong", async () => {
   // A server that does not answer: a port nobody listens on.
-  const probe = createServer();
-  await new Promise((r) => probe.listen(0, "127.0.0.1", r));
-  const port = probe.address().port;
-  await new Promise((r) => probe.close(r));
+  const port = await freePort();
   assert.match(await messageOf(`api=${encodeURIComponent(`http://127.0.0.1:${port}/api/materials`)}`), /The btfkit server does not answer: GET .*api\/materials failed/);
   assert.match(await messageOf("api=api/none"), /cannot list materials: GET api\/none answered HTTP 404/);
   // A package damaged in its third component section: the error, and the first two components

@@ -12,7 +12,7 @@ export const REPO = path.resolve(WEB, "..");
 export const ARTIFACTS = path.join(WEB, "test-artifacts");
 export const FIXTURES = path.join(ARTIFACTS, "fixtures");
 
-const run = (cmd, args, opts = {}) => execFileSync(cmd, args, { stdio: ["ignore", "pipe", "pipe"], ...opts }).toString();
+export const run = (cmd, args, opts = {}) => execFileSync(cmd, args, { stdio: ["ignore", "pipe", "pipe"], ...opts }).toString();
 
 /** The btf binary, building it when needed. */
 export function btfBinary() {
@@ -91,6 +91,12 @@ export function listEntry(id, file, stream) {
   };
 }
 
+/** Bundles the viewer (build.mjs) into `folder`. */
+export function buildViewer(folder) {
+  run(process.execPath, [path.join(WEB, "build.mjs"), folder]);
+  return folder;
+}
+
 /**
  * A bundle folder: the viewer built into it, materials/<id>.btfpkg, api/materials listing `ids`
  * (with WebSocket streams when `streams`).
@@ -99,7 +105,7 @@ export function makeSite(name, packages, ids, { streams = false, list = true } =
   const site = path.join(ARTIFACTS, name);
   rmSync(site, { recursive: true, force: true });
   mkdirSync(path.join(site, "materials"), { recursive: true });
-  run(process.execPath, [path.join(WEB, "build.mjs"), site]);
+  buildViewer(site);
   const materials = [];
   for (const id of ids) {
     copyFileSync(packages[id], path.join(site, "materials", `${id}.btfpkg`));
