@@ -1,16 +1,49 @@
 #!/usr/bin/env bash
-# The main job of `make demo`: synthesize btfkit's built-in default material, describe it, and
-# write pictures of it at measured and in-between directions, then compress it and show what the
-# package costs and loses, render it on objects under a sky, and write a report comparing codecs.
-# Later stages of btfkit (serve) extend this script.
+# The main job of `make demo`: btf serve streams btfkit's built-in demo material to the web viewer
+# (its URL is printed as soon as it is up, and it serves until Ctrl-C). Meanwhile the script
+# synthesizes the default material, describes it, writes pictures of it at measured and
+# in-between directions, compresses it and shows what the package costs and loses, renders it on
+# objects under a sky, and writes a report comparing codecs.
+#
+# DEMO_PORT (8080) is the server's port; DEMO_SERVE=0 stops the server when the pictures and the
+# report are done instead of serving until Ctrl-C (for unattended runs).
 set -euo pipefail
 btf=${1:-build/release/btf}
 out=${DEMO_OUT:-out/demo}
 preset=${DEMO_PRESET:-woven_fabric}
 size=${DEMO_SIZE:-128}
+port=${DEMO_PORT:-8080}
 mkdir -p "$out"
 
 step() { printf '\n== %s\n' "$*"; }
+
+step "Starting the streaming server: btf serve, the built-in demo material (made on the first start, about a minute; cached)"
+rm -f "$out/serve.out"
+"$btf" serve --port "$port" > "$out/serve.out" 2> "$out/serve.log" &
+server=$!
+stop_server() {
+  if kill -0 "$server" 2> /dev/null; then
+    kill -TERM "$server" 2> /dev/null || true
+    wait "$server" 2> /dev/null || true
+  fi
+}
+trap stop_server EXIT
+trap 'exit 130' INT TERM
+url=""
+for _ in $(seq 1 1200); do
+  url=$(sed -n 's/^serving .* at \(http:[^ ]*\)$/\1/p' "$out/serve.out")
+  [ -n "$url" ] && break
+  if ! kill -0 "$server" 2> /dev/null; then
+    echo "demo: btf serve stopped before serving:" >&2
+    cat "$out/serve.log" >&2
+    exit 1
+  fi
+  sleep 0.5
+done
+[ -n "$url" ] || { echo "demo: btf serve did not start within 10 minutes ($out/serve.log)" >&2; exit 1; }
+cat "$out/serve.out"
+printf '\n   >>> The web viewer: open %s in a browser (WebGL2). <<<\n' "$url"
+printf '   The server runs while the rest of the demo makes pictures and a report.\n'
 
 step "Synthesizing the default material: $preset, ${size}² texels, 81 lights × 81 views (UBO2003 sampling)"
 "$btf" synth --preset "$preset" --size "$size" --sampling ubo81 --seed 1 -o "$out/$preset.h5"
@@ -75,3 +108,11 @@ fi
 
 step "Done. Pictures and the material are in $out/:"
 ls -1 "$out"
+
+if [ "${DEMO_SERVE:-1}" = 0 ]; then
+  stop_server
+  echo "demo: the server at $url stopped (DEMO_SERVE=0)"
+  exit 0
+fi
+step "Serving: open $url in a browser; Ctrl-C stops the server"
+wait "$server"

@@ -27,6 +27,10 @@ export interface MaterialState {
   sections: number;
   /** Component sections applied to the textures, in order of arrival. */
   applied: string[];
+  /** performance.now() when the stream was opened, when the first component was decoded (the
+   * material can be drawn), when the last byte arrived, and when the last section was decoded;
+   * null until then. */
+  times: { start: number; ready: number | null; received: number | null; decoded: number | null };
 }
 
 export interface GpuLimits {
@@ -73,6 +77,7 @@ export class MaterialView {
       total: entry.bytes ?? 0,
       components: 0,
       totalComponents: 0,
+      times: { start: performance.now(), ready: null, received: null, decoded: null },
       ready: false,
       done: false,
       complete: false,
@@ -124,6 +129,7 @@ export class MaterialView {
         },
         chunk: (data) => {
           this.state.bytes += data.length;
+          if (this.state.total > 0 && this.state.bytes >= this.state.total) this.state.times.received ??= performance.now();
           // A copy the worker owns: the stream's buffers may be reused.
           const copy = data.slice();
           this.send({ type: "chunk", data: copy.buffer }, [copy.buffer]);
@@ -236,15 +242,21 @@ export class MaterialView {
         counts[msg.plane] = Math.max(counts[msg.plane], (msg.k >> 2) + 1);
         this.state.components = msg.loaded;
         this.state.applied.push(msg.name);
-        if (this.haveTables) this.state.ready = true;
+        if (this.haveTables) this.markReady();
         return;
       }
       case "done":
         this.state.done = true;
         this.state.complete = msg.complete;
-        if (this.haveTables && this.info) this.state.ready = true;
+        if (msg.complete) this.state.times.decoded ??= performance.now();
+        if (this.haveTables && this.info) this.markReady();
         return;
     }
+  }
+
+  private markReady(): void {
+    this.state.ready = true;
+    this.state.times.ready ??= performance.now();
   }
 
   private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number): void {

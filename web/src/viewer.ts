@@ -277,7 +277,7 @@ class Viewer {
       frames: this.frames,
       frameMs: this.frameMs,
       renderMs: this.renderMs,
-      materials: [...this.materials.values()].map((m) => ({ ...m.state, applied: [...m.state.applied] })),
+      materials: [...this.materials.values()].map((m) => ({ ...m.state, applied: [...m.state.applied], times: { ...m.state.times } })),
       objects: this.objects.map((o) => ({ shape: o.spec.shape, material: o.materialId, visible: o.object.visible })),
     };
   }
