@@ -1,0 +1,283 @@
+#include "btf/bsvtf/tile_codec.h"
+
+#include <libdeflate.h>
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
+
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace btf::bsvtf {
+
+namespace {
+
+constexpr uint8_t kDct = 1, kLossless = 2;
+constexpr size_t kHeader = 9;
+
+uint16_t to_half(float v) {
+    return Eigen::numext::bit_cast<uint16_t>(Eigen::half(v));
+}
+float from_half(uint16_t bits) {
+    return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
+}
+
+// The orthonormal 8-point DCT-II basis: kBasis[k][n] = c_k cos((2n + 1) k π / 16).
+struct DctBasis {
+    double m[8][8];
+    DctBasis() {
+        for (int k = 0; k < 8; ++k)
+            for (int n = 0; n < 8; ++n)
+                m[k][n] = (k == 0 ? std::sqrt(1.0 / 8) : std::sqrt(2.0 / 8)) *
+                          std::cos((2 * n + 1) * k * M_PI / 16);
+    }
+};
+const DctBasis kBasis;
+
+// Zig-zag order of an 8 × 8 block (index = row · 8 + column).
+struct ZigZag {
+    int order[64];
+    ZigZag() {
+        int i = 0;
+        for (int s = 0; s < 15; ++s)
+            for (int t = 0; t <= s; ++t) {
+                const int r = (s % 2 == 0) ? s - t : t;
+                const int c = s - r;
+                if (r < 8 && c < 8) order[i++] = r * 8 + c;
+            }
+    }
+};
+const ZigZag kZigZag;
+
+void forward_dct(const double in[64], double out[64]) {
+    double tmp[64];
+    for (int r = 0; r < 8; ++r)
+        for (int k = 0; k < 8; ++k) {
+            double s = 0;
+            for (int n = 0; n < 8; ++n) s += kBasis.m[k][n] * in[r * 8 + n];
+            tmp[r * 8 + k] = s;
+        }
+    for (int c = 0; c < 8; ++c)
+        for (int k = 0; k < 8; ++k) {
+            double s = 0;
+            for (int n = 0; n < 8; ++n) s += kBasis.m[k][n] * tmp[n * 8 + c];
+            out[k * 8 + c] = s;
+        }
+}
+
+void inverse_dct(const double in[64], double out[64]) {
+    double tmp[64];
+    for (int c = 0; c < 8; ++c)
+        for (int n = 0; n < 8; ++n) {
+            double s = 0;
+            for (int k = 0; k < 8; ++k) s += kBasis.m[k][n] * in[k * 8 + c];
+            tmp[n * 8 + c] = s;
+        }
+    for (int r = 0; r < 8; ++r)
+        for (int n = 0; n < 8; ++n) {
+            double s = 0;
+            for (int k = 0; k < 8; ++k) s += kBasis.m[k][n] * tmp[r * 8 + k];
+            out[r * 8 + n] = s;
+        }
+}
+
+void put_varint(std::vector<uint8_t>& out, int64_t v) {
+    uint64_t z = (uint64_t(v) << 1) ^ uint64_t(v >> 63);
+    while (z >= 0x80) {
+        out.push_back(uint8_t(z | 0x80));
+        z >>= 7;
+    }
+    out.push_back(uint8_t(z));
+}
+
+int64_t get_varint(const uint8_t*& p, const uint8_t* end) {
+    uint64_t z = 0;
+    for (int shift = 0; shift < 64; shift += 7) {
+        if (p == end) throw Error("tile: the coefficients end early");
+        const uint8_t b = *p++;
+        z |= uint64_t(b & 0x7f) << shift;
+        if (!(b & 0x80)) return int64_t(z >> 1) ^ -int64_t(z & 1);
+    }
+    throw Error("tile: a coefficient is longer than 64 bits");
+}
+
+std::vector<uint8_t> deflate(const std::vector<uint8_t>& raw, int level, uint8_t format,
+                             float step) {
+    std::unique_ptr<libdeflate_compressor, decltype(&libdeflate_free_compressor)> c(
+        libdeflate_alloc_compressor(level), libdeflate_free_compressor);
+    if (!c) throw std::bad_alloc();
+    std::vector<uint8_t> out(kHeader + libdeflate_deflate_compress_bound(c.get(), raw.size()));
+    out[0] = format;
+    std::memcpy(&out[1], &step, 4);
+    const uint32_t n = uint32_t(raw.size());
+    std::memcpy(&out[5], &n, 4);
+    const size_t size = libdeflate_deflate_compress(c.get(), raw.data(), raw.size(),
+                                                    out.data() + kHeader, out.size() - kHeader);
+    if (size == 0) throw Error("tile: deflate failed");
+    out.resize(kHeader + size);
+    return out;
+}
+
+// Prediction value i, or 0 without a parent.
+float predicted(std::span<const float> prediction, size_t i) {
+    return prediction.empty() ? 0.0f : prediction[i];
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_tile(std::span<const uint16_t> tile, std::span<const float> prediction,
+                                 const TileGeometry& geometry, float step, int deflate_level) {
+    const size_t values = size_t(geometry.values());
+    if (tile.size() != values || (!prediction.empty() && prediction.size() != values))
+        throw Error("encode_tile: the tile or its prediction has the wrong size");
+    std::vector<uint8_t> raw;
+    if (step <= 0) {
+        // Lossless: high bytes, then low bytes (the shuffle groups the similar exponents).
+        raw.resize(values * 2);
+        for (size_t i = 0; i < values; ++i) {
+            raw[i] = uint8_t(tile[i] >> 8);
+            raw[values + i] = uint8_t(tile[i] & 0xff);
+        }
+        return deflate(raw, deflate_level, kLossless, 0);
+    }
+    const int S = geometry.stride(), blocks = S / 8;
+    raw.reserve(values);
+    double block[64], coef[64];
+    for (int c = 0; c < 4; ++c)
+        for (int by = 0; by < blocks; ++by)
+            for (int bx = 0; bx < blocks; ++bx) {
+                for (int r = 0; r < 8; ++r)
+                    for (int n = 0; n < 8; ++n) {
+                        const size_t i =
+                            (size_t(by * 8 + r) * size_t(S) + size_t(bx * 8 + n)) * 4 + size_t(c);
+                        block[r * 8 + n] = double(from_half(tile[i])) - predicted(prediction, i);
+                    }
+                forward_dct(block, coef);
+                for (int k = 0; k < 64; ++k)
+                    put_varint(raw, std::llround(coef[kZigZag.order[k]] / step));
+            }
+    return deflate(raw, deflate_level, kDct, step);
+}
+
+void decode_tile(std::span<const uint8_t> payload, std::span<const float> prediction,
+                 const TileGeometry& geometry, std::span<uint16_t> out) {
+    const size_t values = size_t(geometry.values());
+    if (out.size() != values || (!prediction.empty() && prediction.size() != values))
+        throw Error("decode_tile: the output or the prediction has the wrong size");
+    if (payload.size() < kHeader) throw Error("tile: the payload is shorter than its header");
+    const uint8_t format = payload[0];
+    float step;
+    uint32_t inflated;
+    std::memcpy(&step, &payload[1], 4);
+    std::memcpy(&inflated, &payload[5], 4);
+    if (format != kDct && format != kLossless)
+        throw Error(fmt::format("tile: unknown format {}", int(format)));
+    if (inflated > values * 10) throw Error("tile: the inflated size is implausible");
+    std::vector<uint8_t> raw(inflated);
+    std::unique_ptr<libdeflate_decompressor, decltype(&libdeflate_free_decompressor)> d(
+        libdeflate_alloc_decompressor(), libdeflate_free_decompressor);
+    if (!d) throw std::bad_alloc();
+    if (libdeflate_deflate_decompress(d.get(), payload.data() + kHeader, payload.size() - kHeader,
+                                      raw.data(), raw.size(), nullptr) != LIBDEFLATE_SUCCESS)
+        throw Error("tile: the deflate stream is damaged");
+    if (format == kLossless) {
+        if (inflated != values * 2) throw Error("tile: a lossless tile has the wrong size");
+        for (size_t i = 0; i < values; ++i)
+            out[i] = uint16_t(uint16_t(raw[i]) << 8 | raw[values + i]);
+        return;
+    }
+    if (!(step > 0) || !std::isfinite(step)) throw Error("tile: the quantization step is invalid");
+    const int S = geometry.stride(), blocks = S / 8;
+    const uint8_t* p = raw.data();
+    const uint8_t* end = p + raw.size();
+    double coef[64], block[64];
+    for (int c = 0; c < 4; ++c)
+        for (int by = 0; by < blocks; ++by)
+            for (int bx = 0; bx < blocks; ++bx) {
+                for (int k = 0; k < 64; ++k)
+                    coef[kZigZag.order[k]] = double(get_varint(p, end)) * step;
+                inverse_dct(coef, block);
+                for (int r = 0; r < 8; ++r)
+                    for (int n = 0; n < 8; ++n) {
+                        const size_t i =
+                            (size_t(by * 8 + r) * size_t(S) + size_t(bx * 8 + n)) * 4 + size_t(c);
+                        out[i] = to_half(float(block[r * 8 + n] + predicted(prediction, i)));
+                    }
+            }
+    if (p != end) throw Error("tile: bytes after the coefficients");
+}
+
+float step_for(const Pyramid& pyramid, double relative_error) {
+    if (!(relative_error > 0)) return 0;
+    const TileGeometry& g = pyramid.geometry();
+    double sum = 0;
+    uint64_t count = 0;
+    for (size_t t = 0; t < pyramid.tile_count(); ++t) {
+        const TileId id = pyramid.id(t);
+        if (id.level != 0) continue;
+        const std::span<const uint16_t> tile = pyramid.tile(id);
+        for (int y = g.pad; y < g.pad + g.tile; ++y)
+            for (int x = g.pad; x < g.pad + g.tile; ++x)
+                for (int c = 0; c < 4; ++c) {
+                    const double v = from_half(
+                        tile[(size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c)]);
+                    sum += v * v;
+                    ++count;
+                }
+    }
+    const double rms = count ? std::sqrt(sum / double(count)) : 0;
+    return float(2 * relative_error * rms);
+}
+
+EncodedPyramid encode_pyramid(const Pyramid& pyramid, float step, int deflate_level,
+                              Progress& progress) {
+    const TileGeometry& g = pyramid.geometry();
+    const size_t values = size_t(g.values());
+    EncodedPyramid e;
+    e.step = step;
+    e.payloads.resize(pyramid.tile_count());
+    e.decoded.resize(pyramid.tile_count() * values);
+    progress.begin("compressing tiles", pyramid.tile_count());
+    // Coarsest level first: a child is predicted from its parent as the receiver decodes it.
+    for (int level = pyramid.levels() - 1; level >= 0; --level) {
+        std::vector<size_t> todo;
+        for (size_t t = 0; t < pyramid.tile_count(); ++t)
+            if (pyramid.id(t).level == level) todo.push_back(t);
+        parallel_for(0, int64_t(todo.size()), [&](int64_t k) {
+            const size_t t = todo[size_t(k)];
+            const TileId id = pyramid.id(t);
+            std::vector<float> prediction;
+            if (pyramid.has_parent(id)) {
+                const size_t parent = pyramid.index(pyramid.parent(id));
+                prediction = predict_child({e.decoded.data() + parent * values, values}, g, id);
+            }
+            e.payloads[t] = encode_tile(pyramid.tile(id), prediction, g, step, deflate_level);
+            decode_tile(e.payloads[t], prediction, g, {e.decoded.data() + t * values, values});
+            progress.advance();
+        });
+    }
+    progress.finish();
+    double err = 0, energy = 0;
+    for (size_t t = 0; t < pyramid.tile_count(); ++t) {
+        e.encoded_bytes += e.payloads[t].size();
+        if (pyramid.id(t).level != 0) continue;
+        const std::span<const uint16_t> tile = pyramid.tile(pyramid.id(t));
+        for (int y = g.pad; y < g.pad + g.tile; ++y)
+            for (int x = g.pad; x < g.pad + g.tile; ++x)
+                for (int c = 0; c < 4; ++c) {
+                    const size_t i = (size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c);
+                    const double v = from_half(tile[i]);
+                    const double d = double(from_half(e.decoded[t * values + i])) - v;
+                    err += d * d;
+                    energy += v * v;
+                }
+    }
+    e.raw_bytes = uint64_t(pyramid.tile_count()) * values * 2;
+    e.relative_rms_error = energy > 0 ? std::sqrt(err / energy) : 0;
+    return e;
+}
+
+}  // namespace btf::bsvtf

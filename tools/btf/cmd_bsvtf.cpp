@@ -1,0 +1,89 @@
+// btf bsvtf PKG -o OUT.bsvtf: the BSVTF preprocessing of an fmf package (src/btf/bsvtf): the
+// eigen-textures cut into a mip pyramid of padded tiles with their weights (equation 8), each
+// tile compressed against its parent (DCT, quantization, deflate), the Eigen-ABRDFs as packets.
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "btf/bsvtf/file.h"
+#include "btf/bsvtf/pyramid.h"
+#include "btf/bsvtf/tile_codec.h"
+#include "btf/codecs/factor/model.h"
+#include "btf/io/package.h"
+#include "btf/util/atomic_file.h"
+#include "btf/util/error.h"
+#include "cli.h"
+
+namespace btf::cli {
+
+Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
+    struct Args {
+        std::string input, output;
+        int tile = 64, pad = 4, deflate = 9;
+        double tile_error = 0.01;
+        bool lossless = false;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* cmd = app.add_subcommand(
+        "bsvtf",
+        "Preprocess an fmf package for level-of-detail streaming and rendering (BSVTF): "
+        "eigen-texture tiles of a mip pyramid with their priorities, compressed for "
+        "transmission");
+    cmd->add_option("package", args->input, "an fmf package (*.btfpkg)")->required();
+    cmd->add_option("-o,--output", args->output, "the BSVTF file to write (*.bsvtf)")->required();
+    cmd->add_option("--tile", args->tile, "tile size T in texels")->check(CLI::Range(8, 1024));
+    cmd->add_option("--pad", args->pad, "padding texels on each side of a tile")
+        ->check(CLI::Range(2, 64));
+    cmd->add_option("--tile-error", args->tile_error,
+                    "RMS error the tile compression may add to the eigen-textures, relative to "
+                    "their RMS")
+        ->check(CLI::Range(1e-6, 1.0));
+    cmd->add_flag("--lossless", args->lossless, "store the tiles' half floats exactly (deflate)");
+    cmd->add_option("--deflate", args->deflate, "deflate level of the tiles")
+        ->check(CLI::Range(1, 12));
+
+    return {cmd, [args, &global] {
+                const auto start = std::chrono::steady_clock::now();
+                Package fmf = read_package(args->input);
+                if (fmf.codec() != "fmf")
+                    fail(
+                        "{}: a '{}' package: btf bsvtf needs an fmf package (btf compress "
+                        "--codec fmf)",
+                        args->input, fmf.codec());
+                { const AtomicOutput probe(args->output); }
+                const factor::Model model = factor::from_package(fmf);
+                Progress progress = make_progress(global);
+                const bsvtf::Pyramid pyramid =
+                    bsvtf::Pyramid::build(model, {args->tile, args->pad}, progress);
+                const double relative = args->lossless ? 0.0 : args->tile_error;
+                const float step = bsvtf::step_for(pyramid, relative);
+                const bsvtf::EncodedPyramid encoded =
+                    bsvtf::encode_pyramid(pyramid, step, args->deflate, progress);
+                Package out = bsvtf::make_bsvtf(fmf, model, pyramid, encoded, relative);
+                write_package(args->output, out, {.zstd_level = 3}, progress);
+                const double seconds =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+                std::printf(
+                    "%s: %d × %d texels, %zu groups of 4 components, %d levels of %d × %d tiles "
+                    "(+%d padding): %zu tiles\n",
+                    args->output.c_str(), pyramid.width(), pyramid.height(),
+                    pyramid.groups().size(), pyramid.levels(), args->tile, args->tile, args->pad,
+                    pyramid.tile_count());
+                std::printf(
+                    "tiles: %s in half floats → %s compressed (%s), %s\n",
+                    human_bytes(double(encoded.raw_bytes)).c_str(),
+                    human_bytes(double(encoded.encoded_bytes)).c_str(),
+                    format_ratio(double(encoded.raw_bytes) / double(encoded.encoded_bytes)).c_str(),
+                    args->lossless ? "lossless"
+                                   : fmt::format("adding a relative RMS error of {:.4f} to the "
+                                                 "eigen-textures (at most {})",
+                                                 encoded.relative_rms_error, relative)
+                                         .c_str());
+                std::printf("file: %s (the fmf package: %s), %.1f s\n",
+                            human_bytes(double(out.file_bytes)).c_str(),
+                            human_bytes(double(fmf.file_bytes)).c_str(), seconds);
+            }};
+}
+
+}  // namespace btf::cli
