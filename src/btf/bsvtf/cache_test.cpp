@@ -1,0 +1,205 @@
+// The BSVTF tile cache: votes (equation 9), priorities and swap costs (equations 8–10) on
+// hand-made cases, add and swap, the decision rule, and the invariants under random operation.
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "btf/bsvtf/cache.h"
+#include "btf/testing/support.h"
+
+namespace btf::bsvtf {
+namespace {
+
+// 32 × 32 texels in tiles of 8: levels 32, 16, 8 → 16 + 4 + 1 tiles per group.
+TileLayout layout(int groups = 1, int width = 32, int height = 32) {
+    std::vector<Group> g;
+    for (int i = 0; i < groups; ++i) g.push_back({0, 4 * i, 4});
+    return TileLayout(width, height, {8, 4}, g);
+}
+
+std::string describe(const TileKey& t) {
+    return fmt::format("m{} g{} l{} ({}, {})", t.material, t.id.group, t.id.level, t.id.x, t.id.y);
+}
+
+std::string describe(const TileCache& cache) {
+    std::string out;
+    for (const TileKey& t : cache.tiles()) out += " " + describe(t);
+    return out;
+}
+
+TEST(Votes, APixelVotesForItsTileAndEveryAncestor) {
+    const TileLayout l = layout();
+    Votes votes({&l});
+    votes.add(0, 0, (20 + 0.5) / 32, (3 + 0.5) / 32);  // level-0 texel (20, 3): tile (2, 0)
+    EXPECT_EQ(votes(0, {0, 0, 2, 0}), 1u);
+    EXPECT_EQ(votes(0, {0, 1, 1, 0}), 1u);
+    EXPECT_EQ(votes(0, {0, 2, 0, 0}), 1u);
+    EXPECT_EQ(votes(0, {0, 0, 3, 0}), 0u);
+    // A pixel needing level 1 votes from level 1 up, not for level 0.
+    votes.add(0, 1, (20 + 0.5) / 32, (3 + 0.5) / 32);
+    EXPECT_EQ(votes(0, {0, 0, 2, 0}), 1u);
+    EXPECT_EQ(votes(0, {0, 1, 1, 0}), 2u);
+    EXPECT_EQ(votes(0, {0, 2, 0, 0}), 2u);
+    // Every group of the material sees the same votes; levels beyond the pyramid are clamped;
+    // coordinates wrap.
+    EXPECT_EQ(votes(0, {3, 1, 1, 0}), 2u);
+    votes.add(0, 9, -0.99, 1.01);
+    EXPECT_EQ(votes(0, {0, 2, 0, 0}), 3u);
+    votes.clear();
+    EXPECT_EQ(votes(0, {0, 2, 0, 0}), 0u);
+}
+
+TEST(TileCache, StartsWithTheCoarsestTileOfEveryGroup) {
+    const TileLayout a = layout(2), b = layout(1, 64, 32);
+    const std::vector<float> wa(a.tile_count(), 1.0f), wb(b.tile_count(), 1.0f);
+    const TileCache cache({&a, &b}, {&wa, &wb}, 10);
+    // b: 64 × 32 → 32 × 16 → 16 × 8 (2 × 1 tiles) → 8 × 4: 4 levels, one coarsest tile.
+    EXPECT_EQ(cache.size(), 3);
+    EXPECT_TRUE(cache.resident({0, {0, 2, 0, 0}}));
+    EXPECT_TRUE(cache.resident({0, {1, 2, 0, 0}}));
+    EXPECT_TRUE(cache.resident({1, {0, 3, 0, 0}}));
+    EXPECT_EQ(cache.problems(), "");
+    EXPECT_EQ(cache.lookup(0, 1, 0, 31, 31).id, (TileId{1, 2, 0, 0}));
+    EXPECT_NE(test::error_of([&] {
+                  TileCache({&a, &b}, {&wa, &wb}, 2);
+              }).find("cannot hold"),
+              std::string::npos);
+}
+
+TEST(TileCache, PriorityAndSwapCostFollowEquationsEightToTen) {
+    const TileLayout l = layout();
+    std::vector<float> w(l.tile_count(), 0.0f);
+    w[l.index({0, 0, 1, 1})] = 0.5f;  // level-0 tile (1, 1) against its parent
+    w[l.index({0, 1, 0, 0})] = 2.0f;  // its parent against the root
+    w[l.index({0, 0, 0, 0})] = 3.0f;
+    Votes votes({&l});
+    for (int i = 0; i < 7; ++i) votes.add(0, 0, (9 + 0.5) / 32, (10 + 0.5) / 32);  // tile (1, 1)
+    for (int i = 0; i < 2; ++i) votes.add(0, 0, (1 + 0.5) / 32, (1 + 0.5) / 32);   // tile (0, 0)
+    TileCache cache({&l}, {&w}, 8);
+    // P = w · v.
+    EXPECT_DOUBLE_EQ(cache.priority({0, {0, 0, 1, 1}}, votes), 0.5 * 7);
+    EXPECT_DOUBLE_EQ(cache.priority({0, {0, 1, 0, 0}}, votes), 2.0 * 9);
+    // c(a, t) = v(t) · Σ w over t and its ancestors below a.
+    EXPECT_DOUBLE_EQ(cache.swap_cost({0, {0, 1, 0, 0}}, {0, {0, 0, 1, 1}}, votes), 7 * 0.5);
+    EXPECT_DOUBLE_EQ(cache.swap_cost({0, {0, 2, 0, 0}}, {0, {0, 0, 1, 1}}, votes), 7 * (0.5 + 2.0));
+    EXPECT_DOUBLE_EQ(cache.swap_cost({0, {0, 2, 0, 0}}, {0, {0, 0, 0, 0}}, votes), 2 * (3.0 + 2.0));
+    // The best add is a child of a resident tile: only level 1 can be added now.
+    auto add = cache.best_add(votes);
+    ASSERT_TRUE(add);
+    EXPECT_EQ(add->tile.id, (TileId{0, 1, 0, 0}));
+    EXPECT_DOUBLE_EQ(add->value, 18);
+    cache.add(add->tile);
+    // Now (0, 0) of level 0 (P = 3 · 2 = 6) beats (1, 1) (P = 3.5); tiles without votes never.
+    add = cache.best_add(votes);
+    ASSERT_TRUE(add);
+    EXPECT_EQ(add->tile.id, (TileId{0, 0, 0, 0}));
+    cache.add(add->tile);
+    cache.add(cache.best_add(votes)->tile);
+    EXPECT_FALSE(cache.best_add(votes));
+    // The cheapest swap: (0, 0) and (1, 1) for their parent costs 6 + 3.5.
+    const auto swap = cache.cheapest_swap(votes);
+    ASSERT_TRUE(swap);
+    EXPECT_EQ(swap->tile.id, (TileId{0, 1, 0, 0}));
+    EXPECT_DOUBLE_EQ(swap->value, 9.5);
+    cache.swap(swap->tile, swap->out[0], swap->out[1]);
+    EXPECT_FALSE(cache.resident({0, {0, 0, 1, 1}}));
+    EXPECT_TRUE(cache.resident({0, {0, 1, 0, 0}}));
+    EXPECT_EQ(cache.problems(), "");
+}
+
+TEST(TileCache, AddNeedsAResidentParentAndRemovesCoveredAncestors) {
+    const TileLayout l = layout();
+    const std::vector<float> w(l.tile_count(), 1.0f);
+    TileCache cache({&l}, {&w}, 6);
+    EXPECT_NE(test::error_of([&] {
+                  cache.add({0, {0, 0, 0, 0}});
+              }).find("parent is not resident"),
+              std::string::npos);
+    for (int i = 0; i < 4; ++i) cache.add({0, {0, 1, i % 2, i / 2}});
+    // The root is covered by its four children: it left, and the cache holds 4.
+    EXPECT_FALSE(cache.resident({0, {0, 2, 0, 0}}));
+    EXPECT_EQ(cache.size(), 4);
+    for (int i = 0; i < 2; ++i) cache.add({0, {0, 0, i, 0}});
+    EXPECT_EQ(cache.size(), 6);
+    EXPECT_NE(test::error_of([&] {
+                  cache.add({0, {0, 0, 0, 1}});
+              }).find("full"),
+              std::string::npos);
+    EXPECT_EQ(cache.problems(), "");
+    // Lookups find the finest resident tile on the path.
+    EXPECT_EQ(cache.lookup(0, 0, 0, 1, 1).id, (TileId{0, 0, 0, 0}));
+    EXPECT_EQ(cache.lookup(0, 0, 0, 1, 9).id, (TileId{0, 1, 0, 0}));
+    EXPECT_EQ(cache.lookup(0, 0, 1, 1, 1).id, (TileId{0, 1, 0, 0}));
+}
+
+TEST(TileCache, InvariantsHoldUnderTheDecisionRuleWithChangingVotes) {
+    const TileLayout a = layout(2), b = layout(1, 64, 64);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> uni(0.0f, 1.0f);
+    std::vector<float> wa(a.tile_count()), wb(b.tile_count());
+    for (float& x : wa) x = uni(rng);
+    for (float& x : wb) x = uni(rng);
+    TileCache cache({&a, &b}, {&wa, &wb}, 24);
+    Votes votes({&a, &b});
+    int adds = 0, swaps = 0;
+    for (int frame = 0; frame < 200; ++frame) {
+        // A "view": a random window of each material at a random level.
+        votes.clear();
+        for (int m = 0; m < 2; ++m) {
+            const double u0 = uni(rng), v0 = uni(rng), size = 0.1 + 0.5 * uni(rng);
+            const int level = int(uni(rng) * 3);
+            for (int k = 0; k < 200; ++k)
+                votes.add(m, level, u0 + size * uni(rng), v0 + size * uni(rng));
+        }
+        for (int op = 0; op < 8; ++op) {
+            const auto add = cache.best_add(votes);
+            if (!add) break;
+            if (cache.size() == cache.capacity()) {
+                const auto swap = cache.cheapest_swap(votes);
+                if (!swap || swap->value >= add->value) break;
+                const std::string before = describe(cache);
+                cache.swap(swap->tile, swap->out[0], swap->out[1]);
+                ++swaps;
+                ASSERT_EQ(cache.problems(), "")
+                    << "frame " << frame << ": swap for " << describe(swap->tile) << " of "
+                    << describe(swap->out[0]) << " and " << describe(swap->out[1])
+                    << "; before:" << before;
+                // The add may no longer be possible (its parent may have left): plan again.
+                continue;
+            }
+            const std::string before = describe(cache);
+            cache.add(add->tile);
+            ++adds;
+            ASSERT_EQ(cache.problems(), "")
+                << "frame " << frame << ": add of " << describe(add->tile) << "; before:" << before;
+            ASSERT_LE(cache.size(), cache.capacity());
+        }
+        // Every lookup lands on a resident tile.
+        for (int k = 0; k < 20; ++k) {
+            const int level = int(uni(rng) * 3);
+            const TileKey t = cache.lookup(0, 1, level, int(uni(rng) * float(a.level_width(level))),
+                                           int(uni(rng) * float(a.level_height(level))));
+            ASSERT_TRUE(cache.resident(t));
+        }
+    }
+    EXPECT_GT(adds, 50);
+    EXPECT_GT(swaps, 20);
+}
+
+TEST(TileCache, AnAmpleCacheEndsWithTheFinestTilesWhereTheyAreNeeded) {
+    const TileLayout l = layout(2);
+    std::vector<float> w(l.tile_count(), 1.0f);
+    TileCache cache({&l}, {&w}, 64);
+    Votes votes({&l});
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x) votes.add(0, 0, (x + 0.5) / 32, (y + 0.5) / 32);
+    while (const auto add = cache.best_add(votes)) cache.add(add->tile);
+    // 16 finest tiles per group, nothing else.
+    EXPECT_EQ(cache.size(), 32);
+    for (const TileKey& t : cache.tiles()) EXPECT_EQ(t.id.level, 0);
+    EXPECT_EQ(cache.problems(), "");
+}
+
+}  // namespace
+}  // namespace btf::bsvtf
