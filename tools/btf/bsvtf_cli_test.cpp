@@ -69,5 +69,38 @@ TEST(BsvtfCli, RefusesOtherInputsWithOneLine) {
     EXPECT_FALSE(fs::exists(out));
 }
 
+TEST(BsvtfCli, SimulatesAPathAndLogsEveryFrame) {
+    const test::TempFolder dir("bsvtf_sim_cli");
+    const auto at = [&](const std::string& name) { return (dir.path() / name).string(); };
+    ASSERT_EQ(run("synth --preset leather --size 32 -o " + at("m.h5")).code, 0);
+    ASSERT_EQ(run("compress " + at("m.h5") + " --codec fmf --components 4 --no-error -o " +
+                  at("m.btfpkg"))
+                  .code,
+              0);
+    test::write_file(dir.path() / "scene.json", R"({
+      "camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "width": 48, "height": 32},
+      "objects": [{"shape": "sphere", "material": {"type": "btf", "file": "m.btfpkg"}}],
+      "lights": [{"type": "directional", "direction": [0, 1, 1], "irradiance": 2}]})");
+    test::write_file(dir.path() / "path.json", R"({"frames": 5, "keys": [
+      {"frame": 0, "position": [0, 0, 3], "look_at": [0, 0, 0]},
+      {"frame": 4, "position": [0, 0, 2], "look_at": [0, 0, 0]}]})");
+    test::CliResult r = run("bsvtf-sim --scene " + at("scene.json") + " --path " + at("path.json") +
+                            " --cache 288 --tile 16 --bandwidth 4mbit --log " + at("log.csv") +
+                            " --frames " + at("frames"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("1 materials (preprocessing"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("memory: tile cache 144 tiles"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("SSIM against full FMF: mean"), std::string::npos) << r.output;
+    const std::string log = test::read_file(dir.path() / "log.csv");
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 6) << log;  // header + 5 frames
+    EXPECT_EQ(log.rfind("frame,time_s,bytes,", 0), 0u) << log;
+    EXPECT_TRUE(fs::exists(dir.path() / "frames" / "frame-0004.png"));
+
+    r = run("bsvtf-sim --scene " + at("scene.json") + " --path " + at("path.json") +
+            " --bandwidth fast");
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("--bandwidth 'fast'"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace btf

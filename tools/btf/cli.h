@@ -98,5 +98,6 @@ Command register_serve(CLI::App& app, GlobalOptions& global);
 Command register_bundle(CLI::App& app, GlobalOptions& global);
 Command register_image_diff(CLI::App& app, GlobalOptions& global);
 Command register_bsvtf(CLI::App& app, GlobalOptions& global);
+Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli

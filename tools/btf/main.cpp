@@ -65,8 +65,9 @@ int main(int argc, char** argv) {
         register_eval(app, global),       register_quality(app, global),
         register_report(app, global),     register_render(app, global),
         register_image_diff(app, global), register_bsvtf(app, global),
-        register_serve(app, global),      register_bundle(app, global),
-        register_codecs(app, global),     register_formats(app, global),
+        register_bsvtf_sim(app, global),  register_serve(app, global),
+        register_bundle(app, global),     register_codecs(app, global),
+        register_formats(app, global),
     };
 
     try {

@@ -93,6 +93,9 @@ class TileCache {
     /// yet received).
     template <typename Skip>
     std::optional<Operation> best_add(const Votes& votes, Skip&& skip) const;
+    /// Calls fn(tile, P) for every add candidate with P > 0 (what best_add chooses from).
+    template <typename Fn>
+    void for_each_add_candidate(const Votes& votes, Fn&& fn) const;
     std::optional<Operation> best_add(const Votes& votes) const {
         return best_add(votes, [](const TileKey&) { return false; });
     }
@@ -127,23 +130,29 @@ class TileCache {
     int m_size = 0;
 };
 
-template <typename Skip>
-std::optional<TileCache::Operation> TileCache::best_add(const Votes& votes, Skip&& skip) const {
-    std::optional<Operation> best;
+template <typename Fn>
+void TileCache::for_each_add_candidate(const Votes& votes, Fn&& fn) const {
     for (int mi = 0; mi < int(m_materials.size()); ++mi) {
         const Material& m = m_materials[size_t(mi)];
         for (size_t i = 0; i < m.slot.size(); ++i) {
             if (m.slot[i] < 0) continue;
-            const TileId parent = m.layout->id(i);
-            for (const TileId& c : children(m, parent)) {
+            for (const TileId& c : children(m, m.layout->id(i))) {
+                if (m.slot[m.layout->index(c)] >= 0 || covered_below(m, c)) continue;
                 const TileKey key{mi, c};
-                if (m.slot[m.layout->index(c)] >= 0 || skip(key) || covered_below(m, c)) continue;
                 const double p = priority(key, votes);
-                if (p > 0 && (!best || p > best->value))
-                    best = Operation{Operation::Kind::kAdd, key, {}, p};
+                if (p > 0) fn(key, p);
             }
         }
     }
+}
+
+template <typename Skip>
+std::optional<TileCache::Operation> TileCache::best_add(const Votes& votes, Skip&& skip) const {
+    std::optional<Operation> best;
+    for_each_add_candidate(votes, [&](const TileKey& key, double p) {
+        if (!skip(key) && (!best || p > best->value))
+            best = Operation{Operation::Kind::kAdd, key, {}, p};
+    });
     return best;
 }
 

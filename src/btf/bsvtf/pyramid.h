@@ -98,6 +98,7 @@ class TileLayout {
 /// The tiles themselves, cut from a factor model (preprocessing).
 class Pyramid : public TileLayout {
   public:
+    Pyramid() = default;  ///< no tiles
     /// Cuts the eigen-textures of `model` into tiles. The model must be a single-group,
     /// single-cluster, full-resolution factorization without angular levels (an fmf package);
     /// width and height must be divisible by 2^(levels − 1). Throws btf::Error saying what does
