@@ -86,7 +86,7 @@ TEST(BsvtfCli, SimulatesAPathAndLogsEveryFrame) {
       {"frame": 4, "position": [0, 0, 2], "look_at": [0, 0, 0]}]})");
     test::CliResult r = run("bsvtf-sim --scene " + at("scene.json") + " --path " + at("path.json") +
                             " --cache 288 --tile 16 --bandwidth 4mbit --log " + at("log.csv") +
-                            " --frames " + at("frames"));
+                            " --frames " + at("frames") + " --plot " + at("ssim.svg"));
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("1 materials (preprocessing"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("memory: tile cache 144 tiles"), std::string::npos) << r.output;
@@ -95,6 +95,9 @@ TEST(BsvtfCli, SimulatesAPathAndLogsEveryFrame) {
     EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 6) << log;  // header + 5 frames
     EXPECT_EQ(log.rfind("frame,time_s,bytes,", 0), 0u) << log;
     EXPECT_TRUE(fs::exists(dir.path() / "frames" / "frame-0004.png"));
+    const std::string svg = test::read_file(dir.path() / "ssim.svg");
+    EXPECT_NE(svg.find("<svg"), std::string::npos);
+    EXPECT_NE(svg.find("MiB received"), std::string::npos);
 
     r = run("bsvtf-sim --scene " + at("scene.json") + " --path " + at("path.json") +
             " --bandwidth fast");

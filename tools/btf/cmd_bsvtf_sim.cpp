@@ -13,6 +13,7 @@
 
 #include "btf/bsvtf/sim.h"
 #include "btf/core/image.h"
+#include "btf/quality/plot.h"
 #include "btf/quality/render_compare.h"
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
@@ -40,7 +41,7 @@ double parse_bandwidth(const std::string& text) {
 
 Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
     struct Args {
-        std::string scene, path, bandwidth = "10mbit", size, log, frames;
+        std::string scene, path, bandwidth = "10mbit", size, log, frames, plot;
         int cache = 2048, tile = 64, pad = 4, divisor = 4, store = 256;
         double fps = 30, tile_error = 0.01;
         bool lossless = false;
@@ -78,6 +79,7 @@ Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("--store", args->store, "client store of received tiles, MiB")
         ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--log", args->log, "per-frame log (CSV)");
+    cmd->add_option("--plot", args->plot, "SVG plot of SSIM against the bytes received");
     cmd->add_option("--frames", args->frames,
                     "folder for PNGs of every frame: rendered | full FMF (created if missing)");
 
@@ -98,8 +100,9 @@ Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
                 options.width = w;
                 options.height = h;
             }
-            std::optional<AtomicOutput> log;
+            std::optional<AtomicOutput> log, plot;
             if (!args->log.empty()) log.emplace(args->log);
+            if (!args->plot.empty()) plot.emplace(args->plot);
             if (!args->frames.empty()) std::filesystem::create_directories(args->frames);
             const bsvtf::CameraPath path = bsvtf::read_camera_path(args->path);
             Progress progress = make_progress(global);
@@ -131,6 +134,22 @@ Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
                 if (!out) fail("{}: cannot write", args->log);
                 out.close();
                 log->commit();
+            }
+            if (plot) {
+                quality::PlotSeries series{"SSIM against the full-FMF frame", {}};
+                for (const bsvtf::SimFrame& f : report.frames)
+                    series.points.push_back(
+                        {double(f.bytes) / 1048576.0, f.ssim, fmt::format("frame {}", f.frame)});
+                quality::PlotOptions o;
+                o.title = fmt::format("{} materials, cache {}², {}", report.materials.size(),
+                                      args->cache, args->bandwidth);
+                o.x.label = "MiB received";
+                o.y.label = "SSIM";
+                std::ofstream out(plot->temp_path());
+                out << quality::svg_line_plot(o, {series});
+                if (!out) fail("{}: cannot write", args->plot);
+                out.close();
+                plot->commit();
             }
             uint64_t fmf = 0, u = 0;
             double prep = 0;
