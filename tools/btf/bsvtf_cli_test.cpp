@@ -34,6 +34,11 @@ TEST(BsvtfCli, PreprocessesAnFmfPackage) {
     const bsvtf::Bsvtf b = bsvtf::read_bsvtf(read_package(out), out);
     EXPECT_EQ(b.layout.tile_count(), 42u);
     EXPECT_DOUBLE_EQ(b.relative_error, 0.02);
+    r = run("info " + out);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("btfkit BSVTF"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("42: 3 levels of 16 × 16 texels + 4 padding"), std::string::npos)
+        << r.output;
 
     r = run("bsvtf " + pkg + " -o " + out + " --tile 16 --lossless");
     ASSERT_EQ(r.code, 0) << r.output;

@@ -7,7 +7,9 @@
 #include <cctype>
 #include <cstdio>
 
+#include "btf/bsvtf/file.h"
 #include "btf/codecs/codec.h"
+#include "btf/codecs/factor/model.h"
 #include "btf/io/inspect.h"
 #include "btf/io/package.h"
 #include "btf/util/error.h"
@@ -59,8 +61,57 @@ std::string param_text(const nlohmann::json& value) {
     return value.dump();
 }
 
+// A BSVTF file (btf bsvtf): the fmf material it comes from and its tiles.
+void bsvtf_info(const std::string& path, const Package& package, bool json) {
+    const bsvtf::Bsvtf b = bsvtf::read_bsvtf(package, path);
+    const bsvtf::TileLayout& l = b.layout;
+    uint64_t u_bytes = 0;
+    for (size_t g = 0; g < l.groups().size(); ++g)
+        u_bytes += package.at(fmt::format("u{}", g)).data.size();
+    int components = 0;
+    for (const bsvtf::Group& g : l.groups()) components += g.count;
+    const Sampling& s = b.model.sampling;
+    if (json) {
+        nlohmann::json j;
+        j["file"] = path;
+        j["format"] = "btfkit BSVTF";
+        j["width"] = l.width();
+        j["height"] = l.height();
+        j["views"] = {{"count", s.num_views()}, {"set", s.views.name()}};
+        j["lights"] = {{"count", s.num_lights()}, {"set", s.lights.name()}};
+        j["components"] = components;
+        j["groups"] = l.groups().size();
+        j["levels"] = l.levels();
+        j["tile"] = l.geometry().tile;
+        j["pad"] = l.geometry().pad;
+        j["tiles"] = l.tile_count();
+        j["tile_bytes"] = b.payloads.size();
+        j["u_bytes"] = u_bytes;
+        j["step"] = b.step;
+        j["relative_error"] = b.relative_error;
+        j["bytes_on_disk"] = package.file_bytes;
+        std::printf("%s\n", j.dump(2).c_str());
+        return;
+    }
+    std::printf("%s\n", path.c_str());
+    std::printf("  format       btfkit BSVTF (btf bsvtf), from an fmf package\n");
+    std::printf("  extent       %d × %d texels, %d views × %d lights (%s / %s)\n", l.width(),
+                l.height(), s.num_views(), s.num_lights(), s.views.name().c_str(),
+                s.lights.name().c_str());
+    std::printf("  components   %d in %zu groups of 4, colour %s\n", components, l.groups().size(),
+                factor::to_string(b.model.colour.basis).c_str());
+    std::printf("  tiles        %zu: %d levels of %d × %d texels + %d padding\n", l.tile_count(),
+                l.levels(), l.geometry().tile, l.geometry().tile, l.geometry().pad);
+    std::printf("  tile data    %s, %s\n", human_bytes(double(b.payloads.size())).c_str(),
+                b.step > 0 ? fmt::format("DCT, relative error at most {}", b.relative_error).c_str()
+                           : "lossless");
+    std::printf("  U packets    %s\n", human_bytes(double(u_bytes)).c_str());
+    std::printf("  on disk      %s\n", human_bytes(double(package.file_bytes)).c_str());
+}
+
 void package_info(const std::string& path, bool json) {
     const Package package = read_package(path);
+    if (package.codec() == "bsvtf") return bsvtf_info(path, package, json);
     // Opening checks the package through its codec and gives extent and sampling for any codec.
     std::unique_ptr<Material> material;
     try {
