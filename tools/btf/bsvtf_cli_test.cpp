@@ -70,6 +70,7 @@ TEST(BsvtfCli, RefusesOtherInputsWithOneLine) {
     ASSERT_EQ(run("compress " + h5 + " --codec fmf --components 2 --no-error -o " + fmf).code, 0);
     r = run("bsvtf " + fmf + " -o " + out + " --tile 8");
     EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("f.btfpkg: 36 × 36 texels"), std::string::npos) << r.output;
     EXPECT_NE(r.output.find("must be divisible by 8"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(out));
 }

@@ -54,8 +54,14 @@ Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
                 { const AtomicOutput probe(args->output); }
                 const factor::Model model = factor::from_package(fmf);
                 Progress progress = make_progress(global);
-                const bsvtf::Pyramid pyramid =
-                    bsvtf::Pyramid::build(model, {args->tile, args->pad}, progress);
+                bsvtf::Pyramid pyramid;
+                try {
+                    pyramid = bsvtf::Pyramid::build(model, {args->tile, args->pad}, progress);
+                } catch (const Cancelled&) {
+                    throw;
+                } catch (const Error& e) {
+                    fail("{}: {}", args->input, e.what());
+                }
                 const double relative = args->lossless ? 0.0 : args->tile_error;
                 const float step = bsvtf::step_for(pyramid, relative);
                 const bsvtf::EncodedPyramid encoded =

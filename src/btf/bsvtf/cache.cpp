@@ -1,5 +1,7 @@
 #include "btf/bsvtf/cache.h"
 
+#include <Eigen/Core>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -8,6 +10,51 @@
 #include "btf/util/error.h"
 
 namespace btf::bsvtf {
+
+// ---- sampling through the cache --------------------------------------------------------------
+
+bool texel_from_tile(const uint16_t* data, const TileGeometry& g, const TileId& tile, int level,
+                     int x, int y, std::array<float, 4>& texel) {
+    if (!data) return false;
+    const auto value = [&](int lx, int ly, int c) {
+        return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(
+            data[(size_t(ly) * size_t(g.stride()) + size_t(lx)) * 4 + size_t(c)]));
+    };
+    const int ox = tile.x * g.tile - g.pad, oy = tile.y * g.tile - g.pad;  // texel of local 0
+    if (tile.level == level) {
+        for (int c = 0; c < 4; ++c) texel[size_t(c)] = value(x - ox, y - oy, c);
+        return true;
+    }
+    if (tile.level > level) {
+        // Bilinear on the coarser level at the texel's centre: (x + 0.5) / 2^d − 0.5 there, which
+        // lies within the tile or its first padding texel.
+        const double scale = 1.0 / double(1 << (tile.level - level));
+        const double px = (x + 0.5) * scale - 0.5, py = (y + 0.5) * scale - 0.5;
+        const int ix = int(std::floor(px)), iy = int(std::floor(py));
+        const float tx = float(px - ix), ty = float(py - iy);
+        const int lx = ix - ox, ly = iy - oy;
+        for (int c = 0; c < 4; ++c)
+            texel[size_t(c)] =
+                value(lx, ly, c) * (1 - tx) * (1 - ty) + value(lx + 1, ly, c) * tx * (1 - ty) +
+                value(lx, ly + 1, c) * (1 - tx) * ty + value(lx + 1, ly + 1, c) * tx * ty;
+        return true;
+    }
+    // Finer: the average of the texels below it that lie in this tile (all of them when the
+    // tile size is a multiple of 2^d, as for powers of two).
+    const int n = 1 << (level - tile.level);
+    const int x0 = (x << (level - tile.level)) - ox, y0 = (y << (level - tile.level)) - oy;
+    texel.fill(0.0f);
+    int count = 0;
+    for (int ly = y0; ly < y0 + n; ++ly)
+        for (int lx = x0; lx < x0 + n; ++lx) {
+            if (lx < g.pad || ly < g.pad || lx >= g.pad + g.tile || ly >= g.pad + g.tile) continue;
+            ++count;
+            for (int c = 0; c < 4; ++c) texel[size_t(c)] += value(lx, ly, c);
+        }
+    if (count == 0) return false;
+    for (float& v : texel) v /= float(count);
+    return true;
+}
 
 // ---- votes -----------------------------------------------------------------------------------
 

@@ -25,12 +25,15 @@
 /// operation uncovers anything); no resident tile is covered entirely by resident tiles below it
 /// (in particular none has all its children resident); the cache holds at most `capacity` tiles.
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "btf/bsvtf/pyramid.h"
+#include "btf/core/btf_lookup.h"
 
 namespace btf::bsvtf {
 
@@ -129,6 +132,42 @@ class TileCache {
     int m_capacity = 0;
     int m_size = 0;
 };
+
+/// The four channels of (material, group) at `uv` on `level` as the cache shows them: each of
+/// the bilinear lookup's four level texels is read from the tile the cache shows for it — its
+/// own tile; a coarser tile, bilinear at the texel's centre; or finer tiles, the average of the
+/// 2^d × 2^d texels below it (the pyramid's box filter). `tile_data(TileKey)` gives a tile's
+/// half-float bits, or nullptr when it has not arrived: then nothing.
+template <typename TileData>
+std::optional<std::array<float, 4>> sample_cached(const TileCache& cache, const TileLayout& layout,
+                                                  int material, int group, int level, const Uv& uv,
+                                                  TileData&& tile_data);
+
+/// One texel of a level from a tile of any level that covers it (see sample_cached); `texel`
+/// receives the four channels. False when the tile's data is missing.
+bool texel_from_tile(const uint16_t* data, const TileGeometry& geometry, const TileId& tile,
+                     int level, int x, int y, std::array<float, 4>& texel);
+
+template <typename TileData>
+std::optional<std::array<float, 4>> sample_cached(const TileCache& cache, const TileLayout& layout,
+                                                  int material, int group, int level, const Uv& uv,
+                                                  TileData&& tile_data) {
+    level = std::clamp(level, 0, layout.levels() - 1);
+    const WrapLerp lx = wrap_lerp(uv.u, layout.level_width(level));
+    const WrapLerp ly = wrap_lerp(uv.v, layout.level_height(level));
+    const int xs[2] = {lx.i0, lx.i1}, ys[2] = {ly.i0, ly.i1};
+    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
+    std::array<float, 4> out{};
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) {
+            const TileKey t = cache.lookup(material, group, level, xs[i], ys[j]);
+            std::array<float, 4> texel;
+            if (!texel_from_tile(tile_data(t), layout.geometry(), t.id, level, xs[i], ys[j], texel))
+                return std::nullopt;
+            for (int c = 0; c < 4; ++c) out[size_t(c)] += wx[i] * wy[j] * texel[size_t(c)];
+        }
+    return out;
+}
 
 template <typename Fn>
 void TileCache::for_each_add_candidate(const Votes& votes, Fn&& fn) const {

@@ -5,6 +5,8 @@
 
 #include <random>
 
+#include <Eigen/Core>
+
 #include "btf/bsvtf/cache.h"
 #include "btf/testing/support.h"
 
@@ -199,6 +201,87 @@ TEST(TileCache, AnAmpleCacheEndsWithTheFinestTilesWhereTheyAreNeeded) {
     EXPECT_EQ(cache.size(), 32);
     for (const TileKey& t : cache.tiles()) EXPECT_EQ(t.id.level, 0);
     EXPECT_EQ(cache.problems(), "");
+}
+
+// A pyramid of 32 × 32 texels in tiles of 8 (levels 32, 16, 8) of a smooth pattern.
+Pyramid pattern_pyramid() {
+    factor::Model m;
+    m.width = m.height = 32;
+    m.groups = {{0}};
+    factor::Block block;
+    block.a = factor::Matrix::Zero(3, 4);
+    block.b = factor::Matrix(32 * 32, 4);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+            for (int c = 0; c < 4; ++c)
+                block.b(y * 32 + x, c) = static_cast<float>(
+                    Eigen::half(std::sin(0.4f * float(x) + float(c)) * std::cos(0.3f * float(y)) +
+                                0.2f * float(c)));
+    block.energy.assign(4, 1.0f);
+    m.blocks.push_back(std::move(block));
+    return Pyramid::build(m, {8, 4});
+}
+
+// What sample_cached must give when a coarser level shows level `level`: the bilinear lookup of
+// `level` whose texels are the coarser level's bilinear values at their centres.
+std::array<float, 4> through_coarser(const Pyramid& p, int level, int coarse, const Uv& uv) {
+    const WrapLerp lx = wrap_lerp(uv.u, p.level_width(level)),
+                   ly = wrap_lerp(uv.v, p.level_height(level));
+    std::array<float, 4> out{};
+    const int xs[2] = {lx.i0, lx.i1}, ys[2] = {ly.i0, ly.i1};
+    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) {
+            const std::array<float, 4> t = p.sample(
+                0, coarse,
+                {(xs[i] + 0.5) / p.level_width(level), (ys[j] + 0.5) / p.level_height(level)});
+            for (int c = 0; c < 4; ++c) out[size_t(c)] += wx[i] * wy[j] * t[size_t(c)];
+        }
+    return out;
+}
+
+TEST(SampleCached, EveryPathReadsInsideItsTileAndGivesTheLevelsValue) {
+    const Pyramid p = pattern_pyramid();
+    const TileLayout& layout = p;
+    const auto data = [&](const TileKey& t) { return p.tile(t.id).data(); };
+    // Positions near the texture's edges (where lookups wrap) and inside.
+    std::vector<Uv> positions = {{0.001, 0.001}, {0.999, 0.002}, {0.0005, 0.9995}, {0.5, 0.5}};
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> u(-1, 2);
+    for (int i = 0; i < 300; ++i) positions.push_back({u(rng), u(rng)});
+
+    // Only the root: every level is shown by level 2.
+    TileCache coarse({&layout}, {&p.weights()}, 21);
+    for (const Uv& at : positions)
+        for (int level = 0; level < 3; ++level) {
+            const auto got = sample_cached(coarse, layout, 0, 0, level, at, data);
+            ASSERT_TRUE(got);
+            const std::array<float, 4> want =
+                level == 2 ? p.sample(0, 2, at) : through_coarser(p, level, 2, at);
+            for (int c = 0; c < 4; ++c)
+                ASSERT_NEAR((*got)[size_t(c)], want[size_t(c)], 1e-5f)
+                    << at.u << ", " << at.v << " level " << level;
+        }
+    // Every finest tile and nothing else: levels 1 and 2 are the box averages of level 0, which is
+    // what the pyramid stores for them (up to half-float rounding).
+    TileCache fine({&layout}, {&p.weights()}, 21);
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 2; ++x) fine.add({0, {0, 1, x, y}});
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 4; ++x) fine.add({0, {0, 0, x, y}});
+    ASSERT_EQ(fine.size(), 16);
+    for (const Uv& at : positions)
+        for (int level = 0; level < 3; ++level) {
+            const auto got = sample_cached(fine, layout, 0, 0, level, at, data);
+            ASSERT_TRUE(got);
+            const std::array<float, 4> want = p.sample(0, level, at);
+            for (int c = 0; c < 4; ++c)
+                ASSERT_NEAR((*got)[size_t(c)], want[size_t(c)], 2e-3f)
+                    << at.u << ", " << at.v << " level " << level;
+        }
+    // A tile whose data has not arrived gives nothing.
+    EXPECT_FALSE(sample_cached(fine, layout, 0, 0, 0, {0.5, 0.5},
+                               [](const TileKey&) -> const uint16_t* { return nullptr; }));
 }
 
 }  // namespace

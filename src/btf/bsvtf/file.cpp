@@ -24,16 +24,14 @@ void put(std::vector<uint8_t>& out, T value) {
     std::memcpy(out.data() + at, &value, sizeof(T));
 }
 
-// The u packets are half floats when that loses nothing (the factors of an f16 package), else
-// float32.
-bool exactly_half(const factor::Model& model) {
+}  // namespace
+
+bool angular_factors_are_half(const factor::Model& model) {
     for (const factor::Block& b : model.blocks)
         for (int64_t i = 0; i < b.a.size(); ++i)
             if (float(Eigen::half(b.a.data()[i])) != b.a.data()[i]) return false;
     return true;
 }
-
-}  // namespace
 
 Package make_bsvtf(const Package& fmf, const factor::Model& model, const Pyramid& pyramid,
                    const EncodedPyramid& encoded, double relative_error) {
@@ -53,7 +51,7 @@ Package make_bsvtf(const Package& fmf, const factor::Model& model, const Pyramid
                            {"step", encoded.step},
                            {"relative_error", relative_error},
                            {"tiles", pyramid.tile_count()},
-                           {"u_format", exactly_half(model) ? "f16" : "f32"}};
+                           {"u_format", angular_factors_are_half(model) ? "f16" : "f32"}};
     const bool half = out.header["bsvtf"]["u_format"] == "f16";
     out.sections.push_back(section("tables", fmf.at("tables").data));
     out.sections.push_back(section("means", fmf.at("means").data));

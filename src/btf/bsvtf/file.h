@@ -46,6 +46,10 @@ struct Bsvtf {
     }
 };
 
+/// True when every angular factor of `model` is a half float (the factors of an f16 package):
+/// the U packets are then half floats, else float32.
+bool angular_factors_are_half(const factor::Model& model);
+
 /// The BSVTF package of an fmf package, its model (factor::from_package), the model's pyramid
 /// and the pyramid's encoding.
 Package make_bsvtf(const Package& fmf, const factor::Model& model, const Pyramid& pyramid,

@@ -53,16 +53,16 @@ TileLayout::TileLayout(int width, int height, TileGeometry geometry, std::vector
     : m_geometry(geometry), m_width(width), m_height(height), m_groups(std::move(groups)) {
     if (geometry.tile < 8 || geometry.pad < 2 || geometry.stride() % 8 != 0)
         fail(
-            "bsvtf: tile size {} with padding {}: the tile must be at least 8 texels, the "
+            "tile size {} with padding {}: the tile must be at least 8 texels, the "
             "padding at least 2, and tile + 2 × padding a multiple of 8",
             geometry.tile, geometry.pad);
-    if (width < 1 || height < 1) fail("bsvtf: {} × {} texels", width, height);
+    if (width < 1 || height < 1) fail("{} × {} texels", width, height);
     m_levels = 1;
     while (std::max(width >> (m_levels - 1), height >> (m_levels - 1)) > geometry.tile) ++m_levels;
     const int divisor = 1 << (m_levels - 1);
     if (width % divisor != 0 || height % divisor != 0)
         fail(
-            "bsvtf: {} × {} texels: with tiles of {} the pyramid has {} levels, so width and "
+            "{} × {} texels: with tiles of {} the pyramid has {} levels, so width and "
             "height must be divisible by {}",
             width, height, geometry.tile, m_levels, divisor);
     for (int level = 0; level < m_levels; ++level) {
@@ -75,7 +75,7 @@ Pyramid Pyramid::build(const factor::Model& model, TileGeometry geometry, Progre
     if (model.groups.size() != 1 || model.clusters != 1 || model.levels != 1 ||
         !model.angular_levels.empty())
         fail(
-            "bsvtf: the tiles need one factorization of the whole BTF at full resolution (an "
+            "the tiles need one factorization of the whole BTF at full resolution (an "
             "fmf package), not {} view groups, {} texel clusters, {} spatial and {} angular "
             "levels",
             model.groups.size(), model.clusters, model.levels, model.angular_count());

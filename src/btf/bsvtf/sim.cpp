@@ -17,6 +17,7 @@
 
 #include "btf/bsvtf/cache.h"
 #include "btf/bsvtf/evaluator.h"
+#include "btf/bsvtf/file.h"
 #include "btf/bsvtf/tile_codec.h"
 #include "btf/codecs/factor/model.h"
 #include "btf/quality/render_compare.h"
@@ -37,35 +38,6 @@ Vec3 vec3(const nlohmann::json& j, const std::string& what) {
 
 float from_half(uint16_t bits) {
     return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
-}
-
-// The bilinear lookup of level `level` (first texels and blend factors lx, ly of that level)
-// from a tile of a finer level: each of the four texels is the average of the 2^d × 2^d finer
-// texels below it, as the pyramid's box filter made it. Nothing when those texels reach beyond
-// the tile's padding.
-std::optional<std::array<float, 4>> sample_from_finer(std::span<const uint16_t> tile,
-                                                      const TileGeometry& g, const TileId& id,
-                                                      int level, const WrapLerp& lx,
-                                                      const WrapLerp& ly) {
-    const int d = level - id.level, n = 1 << d;
-    // Level-`level` texel i0 and i0 + 1 (unwrapped: the padding holds the wrapped texels) in the
-    // finer tile's local coordinates.
-    const int x0 = (lx.i0 << d) - id.x * g.tile + g.pad, y0 = (ly.i0 << d) - id.y * g.tile + g.pad;
-    if (x0 < 0 || y0 < 0 || x0 + 2 * n > g.stride() || y0 + 2 * n > g.stride()) return std::nullopt;
-    const auto texel = [&](int bx, int by, int c) {
-        float sum = 0;
-        for (int y = by; y < by + n; ++y)
-            for (int x = bx; x < bx + n; ++x)
-                sum +=
-                    from_half(tile[(size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c)]);
-        return sum / float(n * n);
-    };
-    std::array<float, 4> out;
-    for (int c = 0; c < 4; ++c)
-        out[size_t(c)] =
-            texel(x0, y0, c) * (1 - lx.t) * (1 - ly.t) + texel(x0 + n, y0, c) * lx.t * (1 - ly.t) +
-            texel(x0, y0 + n, c) * (1 - lx.t) * ly.t + texel(x0 + n, y0 + n, c) * lx.t * ly.t;
-    return out;
 }
 
 // One material: its tiles as the server holds them, and what the client has received.
@@ -163,7 +135,16 @@ class Simulator {
                 fail("{}: object '{}': bsvtf-sim needs fmf packages as BTF materials",
                      scene_file.string(), scene.objects()[o].name);
             auto [it, added] = index.emplace(&btf->material(), int(m_materials.size()));
-            if (added) prepare(*fmf, progress);
+            if (added) {
+                try {
+                    prepare(*fmf, progress);
+                } catch (const Cancelled&) {
+                    throw;
+                } catch (const Error& e) {
+                    fail("{}: object '{}': {}", scene_file.string(), scene.objects()[o].name,
+                         e.what());
+                }
+            }
             m_object_material[o] = it->second;
         }
         if (m_materials.empty()) fail("{}: the scene has no BTF object", scene_file.string());
@@ -260,9 +241,11 @@ class Simulator {
         const factor::Model& model = fmf.model();
         int components = 0;
         uint64_t rows = 0;
+        // The U packets as make_bsvtf writes them: half floats when that loses nothing.
+        const uint64_t u_bytes = angular_factors_are_half(model) ? 2 : 4;
         for (const Group& group : m->pyramid.groups()) {
             const int64_t r = model.block_rows(0, 0);
-            m->u_size.push_back(uint64_t(r) * uint64_t(group.count) * 2);
+            m->u_size.push_back(uint64_t(r) * uint64_t(group.count) * u_bytes);
             info.u_bytes += m->u_size.back();
             components += group.count;
             rows = uint64_t(r);
@@ -395,9 +378,11 @@ class Simulator {
         const double frame_bytes = m_options.bandwidth / 8 / m_options.fps;
         for (const Candidate& c : candidates) {
             if (m_options.bandwidth > 0 && double(m_queued) >= 2 * frame_bytes) break;
+            // The same tile can be a candidate twice (an add and a swap's ancestor).
+            if (!m_requested.insert({c.request.u, c.request.material, c.request.index}).second)
+                continue;
             m_queue.push_back(c.request);
             m_queued += c.request.bytes;
-            m_requested.insert({c.request.u, c.request.material, c.request.index});
         }
     }
 
@@ -516,22 +501,10 @@ class Simulator {
     std::optional<std::array<float, 4>> sample_cache(const PixelHit& p, int g) const {
         const SimMaterialState& m = *m_materials[size_t(p.material)];
         if (!m.u_received[size_t(g)]) return std::nullopt;
-        const Pyramid& pyramid = m.pyramid;
-        const WrapLerp lx = wrap_lerp(p.hit.uv.u, pyramid.level_width(p.level));
-        const WrapLerp ly = wrap_lerp(p.hit.uv.v, pyramid.level_height(p.level));
-        const TileKey t = m_cache->lookup(p.material, g, p.level, lx.i0, ly.i0);
-        const uint16_t* data = m_store->data(Store::key(p.material, pyramid.index(t.id)));
-        if (!data) return std::nullopt;  // a coarsest tile still on its way
-        const std::span<const uint16_t> tile(data, size_t(pyramid.geometry().values()));
-        if (t.id.level < p.level) {
-            // Only finer tiles cover the texel (the one of the needed level left the cache when
-            // its children came in): the needed level's texels are their 2^d × 2^d averages.
-            if (auto v = sample_from_finer(tile, pyramid.geometry(), t.id, p.level, lx, ly))
-                return v;
-        }
-        const WrapLerp tx = wrap_lerp(p.hit.uv.u, pyramid.level_width(t.id.level));
-        const WrapLerp ty = wrap_lerp(p.hit.uv.v, pyramid.level_height(t.id.level));
-        return sample_tile(tile, pyramid.geometry(), t.id, tx.i0, tx.t, ty.i0, ty.t);
+        return sample_cached(
+            *m_cache, m.pyramid, p.material, g, p.level, p.hit.uv, [&](const TileKey& t) {
+                return m_store->data(Store::key(t.material, m.pyramid.index(t.id)));
+            });
     }
 
     void render_frames(Image& rendered, Image& reference) {
