@@ -84,4 +84,4 @@ for cache in 1024 2048 4096; do
 done
 
 echo; echo "## 3. streaming over 10 Mbit/s, fixed camera, cache 4096²"
-"$btf" -q bsvtf-sim --scene scene.json --path still.json --cache 4096 --bandwidth 10mbit --log stream.csv
+"$btf" -q bsvtf-sim --scene scene.json --path still.json --cache 4096 --bandwidth 10mbit --log stream.csv --plot stream.svg
