@@ -173,6 +173,20 @@ std::span<const uint16_t> Pyramid::tile(const TileId& id) const {
     return {m_data.data() + index(id) * size_t(geometry().values()), size_t(geometry().values())};
 }
 
+double Pyramid::squared_sum(const TileId& id) const {
+    const TileGeometry& g = geometry();
+    const std::span<const uint16_t> data = tile(id);
+    double sum = 0;
+    for (int y = g.pad; y < g.pad + g.tile; ++y)
+        for (int x = g.pad; x < g.pad + g.tile; ++x)
+            for (int c = 0; c < 4; ++c) {
+                const double v =
+                    from_half(data[(size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c)]);
+                sum += v * v;
+            }
+    return sum;
+}
+
 std::array<float, 4> Pyramid::sample(int group, int level, const Uv& uv) const {
     const WrapLerp lx = wrap_lerp(uv.u, level_width(level));
     const WrapLerp ly = wrap_lerp(uv.v, level_height(level));

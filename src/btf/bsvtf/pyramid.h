@@ -108,6 +108,8 @@ class Pyramid : public TileLayout {
 
     /// The tile's half-float bits, geometry().values() of them.
     std::span<const uint16_t> tile(const TileId& id) const;
+    /// Σ of the squared values of the tile's own T × T texels (no padding), all four channels.
+    double squared_sum(const TileId& id) const;
     /// Equation 8's weight w(i, l, l − 1).
     float weight(const TileId& id) const { return m_weights[index(id)]; }
     const std::vector<float>& weights() const { return m_weights; }

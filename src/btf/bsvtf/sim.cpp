@@ -225,18 +225,9 @@ class Simulator {
         m->evaluator = std::make_unique<Evaluator>(fmf.model(), m->pyramid);
         const TileGeometry& g = m->pyramid.geometry();
         m->energy.resize(m->pyramid.tile_count());
-        for (size_t t = 0; t < m->pyramid.tile_count(); ++t) {
-            const std::span<const uint16_t> tile = m->pyramid.tile(m->pyramid.id(t));
-            double sum = 0;
-            for (int y = g.pad; y < g.pad + g.tile; ++y)
-                for (int x = g.pad; x < g.pad + g.tile; ++x)
-                    for (int c = 0; c < 4; ++c) {
-                        const double v = from_half(
-                            tile[(size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c)]);
-                        sum += v * v;
-                    }
-            m->energy[t] = float(sum / (double(g.tile) * g.tile));
-        }
+        for (size_t t = 0; t < m->pyramid.tile_count(); ++t)
+            m->energy[t] =
+                float(m->pyramid.squared_sum(m->pyramid.id(t)) / (double(g.tile) * g.tile));
         SimMaterial info;
         const factor::Model& model = fmf.model();
         int components = 0;

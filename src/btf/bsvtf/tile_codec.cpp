@@ -218,15 +218,8 @@ float step_for(const Pyramid& pyramid, double relative_error) {
     for (size_t t = 0; t < pyramid.tile_count(); ++t) {
         const TileId id = pyramid.id(t);
         if (id.level != 0) continue;
-        const std::span<const uint16_t> tile = pyramid.tile(id);
-        for (int y = g.pad; y < g.pad + g.tile; ++y)
-            for (int x = g.pad; x < g.pad + g.tile; ++x)
-                for (int c = 0; c < 4; ++c) {
-                    const double v = from_half(
-                        tile[(size_t(y) * size_t(g.stride()) + size_t(x)) * 4 + size_t(c)]);
-                    sum += v * v;
-                    ++count;
-                }
+        sum += pyramid.squared_sum(id);
+        count += uint64_t(g.tile) * uint64_t(g.tile) * 4;
     }
     const double rms = count ? std::sqrt(sum / double(count)) : 0;
     return float(2 * relative_error * rms);
