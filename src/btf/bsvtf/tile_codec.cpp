@@ -236,11 +236,11 @@ EncodedPyramid encode_pyramid(const Pyramid& pyramid, float step, int deflate_le
     progress.begin("compressing tiles", pyramid.tile_count());
     // Coarsest level first: a child is predicted from its parent as the receiver decodes it.
     for (int level = pyramid.levels() - 1; level >= 0; --level) {
-        std::vector<size_t> todo;
+        std::vector<size_t> tiles;  // of this level
         for (size_t t = 0; t < pyramid.tile_count(); ++t)
-            if (pyramid.id(t).level == level) todo.push_back(t);
-        parallel_for(0, int64_t(todo.size()), [&](int64_t k) {
-            const size_t t = todo[size_t(k)];
+            if (pyramid.id(t).level == level) tiles.push_back(t);
+        parallel_for(0, int64_t(tiles.size()), [&](int64_t k) {
+            const size_t t = tiles[size_t(k)];
             const TileId id = pyramid.id(t);
             std::vector<float> prediction;
             if (pyramid.has_parent(id)) {
