@@ -1,13 +1,12 @@
 #include "btf/bsvtf/cache.h"
 
-#include <Eigen/Core>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
 
 #include "btf/core/btf_lookup.h"
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 
 namespace btf::bsvtf {
 
@@ -17,8 +16,7 @@ bool texel_from_tile(const uint16_t* data, const TileGeometry& g, const TileId& 
                      int x, int y, std::array<float, 4>& texel) {
     if (!data) return false;
     const auto value = [&](int lx, int ly, int c) {
-        return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(
-            data[(size_t(ly) * size_t(g.stride()) + size_t(lx)) * 4 + size_t(c)]));
+        return from_half(data[(size_t(ly) * size_t(g.stride()) + size_t(lx)) * 4 + size_t(c)]);
     };
     const int ox = tile.x * g.tile - g.pad, oy = tile.y * g.tile - g.pad;  // texel of local 0
     if (tile.level == level) {

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 
 namespace btf::bsvtf {
 
@@ -80,7 +81,7 @@ Package make_bsvtf(const Package& fmf, const factor::Model& model, const Pyramid
         for (int k = group.first; k < group.first + group.count; ++k)
             for (int64_t r = 0; r < block.a.rows(); ++r) {
                 if (half)
-                    put<uint16_t>(u, Eigen::numext::bit_cast<uint16_t>(Eigen::half(block.a(r, k))));
+                    put<uint16_t>(u, to_half(block.a(r, k)));
                 else
                     put<float>(u, block.a(r, k));
             }
@@ -146,7 +147,7 @@ Bsvtf read_bsvtf(const Package& package, const std::string& what) {
                     if (u_bytes == 2) {
                         uint16_t bits;
                         std::memcpy(&bits, v, 2);
-                        b.a(r, g.first + k) = float(Eigen::numext::bit_cast<Eigen::half>(bits));
+                        b.a(r, g.first + k) = from_half(bits);
                     } else {
                         std::memcpy(&b.a(r, g.first + k), v, 4);
                     }

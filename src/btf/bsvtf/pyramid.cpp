@@ -1,24 +1,16 @@
 #include "btf/bsvtf/pyramid.h"
 
-#include <Eigen/Core>
-
 #include <algorithm>
 #include <cmath>
 
 #include "btf/core/btf_lookup.h"
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 #include "btf/util/parallel.h"
 
 namespace btf::bsvtf {
 
 namespace {
-
-uint16_t to_half(float v) {
-    return Eigen::numext::bit_cast<uint16_t>(Eigen::half(v));
-}
-float from_half(uint16_t bits) {
-    return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
-}
 
 int wrap(int i, int n) {
     const int r = i % n;

@@ -16,6 +16,7 @@
 #include "btf/synth/synth.h"
 #include "btf/testing/sources.h"
 #include "btf/testing/support.h"
+#include "btf/util/half.h"
 
 namespace btf::bsvtf {
 namespace {
@@ -124,7 +125,7 @@ TEST(Pyramid, EveryTexelOfEveryTileIsItsLevelsTexelWrapped) {
                                 const uint16_t bits =
                                     tile[(size_t(ly) * size_t(g.stride()) + size_t(lx)) * 4 +
                                          size_t(ch)];
-                                ASSERT_EQ(float(Eigen::numext::bit_cast<Eigen::half>(bits)), want)
+                                ASSERT_EQ(from_half(bits), want)
                                     << "level " << j << " tile " << tx << "," << ty << " texel "
                                     << lx << "," << ly;
                             }

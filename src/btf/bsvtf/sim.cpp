@@ -12,7 +12,6 @@
 #include <set>
 #include <unordered_map>
 
-#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "btf/bsvtf/cache.h"
@@ -23,6 +22,7 @@
 #include "btf/quality/render_compare.h"
 #include "btf/render/scene_file.h"
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 #include "btf/util/parallel.h"
 
 namespace btf::bsvtf {
@@ -34,10 +34,6 @@ constexpr double kPi = 3.14159265358979323846;
 Vec3 vec3(const nlohmann::json& j, const std::string& what) {
     if (!j.is_array() || j.size() != 3) fail("{} must be three numbers", what);
     return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
-}
-
-float from_half(uint16_t bits) {
-    return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
 }
 
 // One material: its tiles as the server holds them, and what the client has received.

@@ -2,13 +2,12 @@
 
 #include <libdeflate.h>
 
-#include <Eigen/Core>
-
 #include <cmath>
 #include <cstring>
 #include <memory>
 
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 #include "btf/util/parallel.h"
 
 namespace btf::bsvtf {
@@ -17,13 +16,6 @@ namespace {
 
 constexpr uint8_t kDct = 1, kLossless = 2;
 constexpr size_t kHeader = 9;
-
-uint16_t to_half(float v) {
-    return Eigen::numext::bit_cast<uint16_t>(Eigen::half(v));
-}
-float from_half(uint16_t bits) {
-    return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
-}
 
 // The orthonormal 8-point DCT-II basis: kBasis[k][n] = c_k cos((2n + 1) k π / 16).
 struct DctBasis {

@@ -13,13 +13,10 @@
 #include "btf/synth/synth.h"
 #include "btf/testing/sources.h"
 #include "btf/testing/support.h"
+#include "btf/util/half.h"
 
 namespace btf::bsvtf {
 namespace {
-
-float from_half(uint16_t bits) {
-    return static_cast<float>(Eigen::numext::bit_cast<Eigen::half>(bits));
-}
 
 // The eigen-textures of a small synthetic material, fmf with 8 components in half floats.
 const Pyramid& fabric() {

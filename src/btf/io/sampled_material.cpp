@@ -1,26 +1,14 @@
 #include "btf/io/sampled_material.h"
 
 #include <fmt/format.h>
-#include <Eigen/Core>
-
 #include "btf/core/btf_lookup.h"
 #include "btf/core/image.h"
 #include "btf/io/open.h"
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 #include "btf/util/parallel.h"
 
 namespace btf {
-
-namespace {
-
-uint16_t to_half(float x) {
-    return Eigen::numext::bit_cast<uint16_t>(Eigen::half(x));
-}
-float from_half(uint16_t h) {
-    return float(Eigen::numext::bit_cast<Eigen::half>(h));
-}
-
-}  // namespace
 
 SampledMaterial::SampledMaterial(const BtfSource& source, int64_t memory_limit, Progress& progress)
     : m_width(source.width()), m_height(source.height()), m_sampling(source.sampling()) {
