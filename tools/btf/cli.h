@@ -75,6 +75,17 @@ void add_raw_output_options(CLI::App& command, RawOutputOptions& options);
 void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
                const RawOutputOptions& options, Progress& progress);
 
+/// The BSVTF tile options of `btf bsvtf` and `btf bsvtf-sim`: --tile, --pad, --tile-error and
+/// --lossless.
+struct TileOptions {
+    int tile = 64, pad = 4;
+    double tile_error = 0.01;
+    bool lossless = false;
+    /// The tile codec's relative error: 0 for --lossless.
+    double relative_error() const { return lossless ? 0.0 : tile_error; }
+};
+void add_tile_options(CLI::App& command, TileOptions& options);
+
 /// A subcommand: its CLI11 parser and what to run once arguments are parsed.
 struct Command {
     CLI::App* parser = nullptr;

@@ -17,12 +17,24 @@
 
 namespace btf::cli {
 
+void add_tile_options(CLI::App& command, TileOptions& options) {
+    command.add_option("--tile", options.tile, "tile size T in texels")->check(CLI::Range(8, 1024));
+    command.add_option("--pad", options.pad, "padding texels on each side of a tile")
+        ->check(CLI::Range(2, 64));
+    command
+        .add_option("--tile-error", options.tile_error,
+                    "RMS error the tile compression may add to the eigen-textures, relative to "
+                    "their RMS")
+        ->check(CLI::Range(1e-6, 1.0));
+    command.add_flag("--lossless", options.lossless,
+                     "send the tiles' half floats exactly (deflate only)");
+}
+
 Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
     struct Args {
         std::string input, output;
-        int tile = 64, pad = 4, deflate = 9;
-        double tile_error = 0.01;
-        bool lossless = false;
+        TileOptions tiles;
+        int deflate = 9;
     };
     auto args = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand(
@@ -32,14 +44,7 @@ Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
         "transmission");
     cmd->add_option("package", args->input, "an fmf package (*.btfpkg)")->required();
     cmd->add_option("-o,--output", args->output, "the BSVTF file to write (*.bsvtf)")->required();
-    cmd->add_option("--tile", args->tile, "tile size T in texels")->check(CLI::Range(8, 1024));
-    cmd->add_option("--pad", args->pad, "padding texels on each side of a tile")
-        ->check(CLI::Range(2, 64));
-    cmd->add_option("--tile-error", args->tile_error,
-                    "RMS error the tile compression may add to the eigen-textures, relative to "
-                    "their RMS")
-        ->check(CLI::Range(1e-6, 1.0));
-    cmd->add_flag("--lossless", args->lossless, "store the tiles' half floats exactly (deflate)");
+    add_tile_options(*cmd, args->tiles);
     cmd->add_option("--deflate", args->deflate, "deflate level of the tiles")
         ->check(CLI::Range(1, 12));
 
@@ -56,13 +61,14 @@ Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
                 Progress progress = make_progress(global);
                 bsvtf::Pyramid pyramid;
                 try {
-                    pyramid = bsvtf::Pyramid::build(model, {args->tile, args->pad}, progress);
+                    pyramid =
+                        bsvtf::Pyramid::build(model, {args->tiles.tile, args->tiles.pad}, progress);
                 } catch (const Cancelled&) {
                     throw;
                 } catch (const Error& e) {
                     fail("{}: {}", args->input, e.what());
                 }
-                const double relative = args->lossless ? 0.0 : args->tile_error;
+                const double relative = args->tiles.relative_error();
                 const float step = bsvtf::step_for(pyramid, relative);
                 const bsvtf::EncodedPyramid encoded =
                     bsvtf::encode_pyramid(pyramid, step, args->deflate, progress);
@@ -74,18 +80,19 @@ Command register_bsvtf(CLI::App& app, GlobalOptions& global) {
                     "%s: %d × %d texels, %zu groups of 4 components, %d levels of %d × %d tiles "
                     "(+%d padding): %zu tiles\n",
                     args->output.c_str(), pyramid.width(), pyramid.height(),
-                    pyramid.groups().size(), pyramid.levels(), args->tile, args->tile, args->pad,
-                    pyramid.tile_count());
+                    pyramid.groups().size(), pyramid.levels(), args->tiles.tile, args->tiles.tile,
+                    args->tiles.pad, pyramid.tile_count());
                 std::printf(
                     "tiles: %s in half floats → %s compressed (%s), %s\n",
                     human_bytes(double(encoded.raw_bytes)).c_str(),
                     human_bytes(double(encoded.encoded_bytes)).c_str(),
                     format_ratio(double(encoded.raw_bytes) / double(encoded.encoded_bytes)).c_str(),
-                    args->lossless ? "lossless"
-                                   : fmt::format("adding a relative RMS error of {:.4f} to the "
-                                                 "eigen-textures (at most {})",
-                                                 encoded.relative_rms_error, relative)
-                                         .c_str());
+                    args->tiles.lossless
+                        ? "lossless"
+                        : fmt::format("adding a relative RMS error of {:.4f} to the "
+                                      "eigen-textures (at most {})",
+                                      encoded.relative_rms_error, relative)
+                              .c_str());
                 std::printf("file: %s (the fmf package: %s), %.1f s\n",
                             human_bytes(double(out.file_bytes)).c_str(),
                             human_bytes(double(fmf.file_bytes)).c_str(), seconds);

@@ -42,9 +42,9 @@ double parse_bandwidth(const std::string& text) {
 Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
     struct Args {
         std::string scene, path, bandwidth = "10mbit", size, log, frames, plot;
-        int cache = 2048, tile = 64, pad = 4, divisor = 4, store = 256;
-        double fps = 30, tile_error = 0.01;
-        bool lossless = false;
+        int cache = 2048, divisor = 4, store = 256;
+        double fps = 30;
+        TileOptions tiles;
     };
     auto args = std::make_shared<Args>();
     CLI::App* cmd = app.add_subcommand(
@@ -69,11 +69,7 @@ Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
         ->check(CLI::Range(1.0, 1000.0));
     cmd->add_option("--size", args->size,
                     "frame size 'width,height' (default: the scene's camera)");
-    cmd->add_option("--tile", args->tile, "tile size")->check(CLI::Range(8, 1024));
-    cmd->add_option("--pad", args->pad, "tile padding")->check(CLI::Range(2, 64));
-    cmd->add_option("--tile-error", args->tile_error, "relative RMS error of the tile compression")
-        ->check(CLI::Range(1e-6, 1.0));
-    cmd->add_flag("--lossless", args->lossless, "send tiles without loss");
+    add_tile_options(*cmd, args->tiles);
     cmd->add_option("--feedback", args->divisor, "feedback image divisor")
         ->check(CLI::Range(1, 64));
     cmd->add_option("--store", args->store, "client store of received tiles, MiB")
@@ -89,8 +85,8 @@ Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global) {
             options.cache = args->cache;
             options.bandwidth = parse_bandwidth(args->bandwidth);
             options.fps = args->fps;
-            options.geometry = {args->tile, args->pad};
-            options.tile_error = args->lossless ? 0.0 : args->tile_error;
+            options.geometry = {args->tiles.tile, args->tiles.pad};
+            options.tile_error = args->tiles.relative_error();
             options.feedback_divisor = args->divisor;
             options.store_bytes = uint64_t(args->store) << 20;
             if (!args->size.empty()) {
