@@ -2,7 +2,7 @@
 // (docs/scenes.md, a subset), so that a test or a comparison with the C++ renderer can fix every
 // value of a frame. web/README.md lists the parameters.
 
-import { SHAPES, type Shape } from "./meshes";
+import { SHAPES, type Shape, type ShapeParams } from "./meshes";
 import { MAX_LIGHTS } from "./shader";
 
 export type V3 = [number, number, number];
@@ -18,16 +18,10 @@ export interface CameraSpec {
   height: number | null;
 }
 
-export interface ObjectSpec {
-  shape: Shape;
+/** An object: its shape's parameters (meshes.ts) and where it is, with which material. */
+export interface ObjectSpec extends ShapeParams {
   /** Material id (api/materials); null: the default material. */
   material: string | null;
-  radius?: number;
-  height?: number;
-  major_radius?: number;
-  minor_radius?: number;
-  width?: number;
-  depth?: number;
   segments: number;
   position: V3;
   rotation: V3;

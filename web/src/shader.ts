@@ -243,6 +243,13 @@ vec3 anyTangent(vec3 n) {
   return vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
 }
 
+// One row's value for column col (light · C + channel) of a view: the row mean (layer < 0) or
+// a(row, 4 components of the layer) · b.
+float rowValue(int col, int view, int plane, int layer, vec4 b) {
+  if (layer < 0) return texelFetch(uMean, ivec3(col, view, plane), 0).r;
+  return dot(texelFetch(uA, ivec3(col, view, layer), 0), b);
+}
+
 void main() {
   // Derivatives first, in uniform control flow.
   vec3 dpdx = dFdx(vPosition), dpdy = dFdy(vPosition);
@@ -345,29 +352,15 @@ void main() {
   int C = uChannels;
 
   for (int p = 0; p < uPlanes; ++p) {
-    // means (a texel-independent row value: the bilinear weights sum to 1)
-    for (int vi = 0; vi < 3; ++vi) {
-      float wv = vw.weight[vi];
-      if (wv <= 0.0) continue;
-      int view = vw.index[vi];
-      for (int i = 0; i < uLightCount; ++i) {
-        if (!lit[i]) continue;
-        for (int li = 0; li < 3; ++li) {
-          float w = wv * lw[i].weight[li];
-          if (w <= 0.0) continue;
-          int light = lw[i].index[li];
-          for (int ch = 0; ch < C; ++ch)
-            direct[i][p + ch] += w * texelFetch(uMean, ivec3(light * C + ch, view, p), 0).r;
-        }
+    // j = -1: the row means (texel-independent: the bilinear weights sum to 1); then each layer of
+    // four components, a(row) · b(texel).
+    for (int j = -1; j < uLayerCount[p]; ++j) {
+      int layer = j < 0 ? -1 : uLayerBase[p] + j;
+      vec4 b = vec4(1.0);
+      if (layer >= 0) {
+        b = sampleB(f0, layer);
+        if (levelBlend > 0.0) b = mix(b, sampleB(f1, layer), levelBlend);
       }
-      if (env)
-        for (int ch = 0; ch < C; ++ch) ambient[p + ch] += wv * texelFetch(uMean, ivec3(uNL * C + ch, view, p), 0).r;
-    }
-    int count = uLayerCount[p];
-    for (int j = 0; j < count; ++j) {
-      int layer = uLayerBase[p] + j;
-      vec4 b = sampleB(f0, layer);
-      if (levelBlend > 0.0) b = mix(b, sampleB(f1, layer), levelBlend);
       for (int vi = 0; vi < 3; ++vi) {
         float wv = vw.weight[vi];
         if (wv <= 0.0) continue;
@@ -378,13 +371,11 @@ void main() {
             float w = wv * lw[i].weight[li];
             if (w <= 0.0) continue;
             int light = lw[i].index[li];
-            for (int ch = 0; ch < C; ++ch)
-              direct[i][p + ch] += w * dot(texelFetch(uA, ivec3(light * C + ch, view, layer), 0), b);
+            for (int ch = 0; ch < C; ++ch) direct[i][p + ch] += w * rowValue(light * C + ch, view, p, layer, b);
           }
         }
         if (env)
-          for (int ch = 0; ch < C; ++ch)
-            ambient[p + ch] += wv * dot(texelFetch(uA, ivec3(uNL * C + ch, view, layer), 0), b);
+          for (int ch = 0; ch < C; ++ch) ambient[p + ch] += wv * rowValue(uNL * C + ch, view, p, layer, b);
       }
     }
   }
