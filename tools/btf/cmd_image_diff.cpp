@@ -3,7 +3,6 @@
 // formats (PNG, JPEG) are compared as shown; linear ones (EXR, HDR, …) are tone-mapped first,
 // exactly as `btf render` writes its PNGs.
 
-#include <cmath>
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -47,22 +46,13 @@ void run_image_diff(const ImageDiffArgs& args) {
         out.commit();
     }
     if (args.json) {
-        const nlohmann::json metrics = {
-            {"a", args.a},
-            {"b", args.b},
-            {"width", a.width()},
-            {"height", a.height()},
-            {"de2000_mean", c.de2000_mean},
-            {"de2000_p95", c.de2000_p95},
-            {"ssim", c.ssim},
-            {"psnr_db", std::isfinite(c.psnr) ? nlohmann::json(c.psnr) : nlohmann::json(nullptr)},
-            {"heat_map_max", c.heat_max},
-        };
+        nlohmann::json metrics = quality::metrics_json(c);
+        metrics.update(
+            {{"a", args.a}, {"b", args.b}, {"width", a.width()}, {"height", a.height()}});
         std::printf("%s\n", metrics.dump(2).c_str());
         return;
     }
-    std::printf("ΔE00 mean %.3f, 95th percentile %.3f; SSIM %.4f; PSNR %.2f dB\n", c.de2000_mean,
-                c.de2000_p95, c.ssim, c.psnr);
+    std::printf("%s\n", quality::summary(c).c_str());
     if (!args.output.empty())
         std::printf("%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n", args.output.c_str(),
                     c.heat_max);

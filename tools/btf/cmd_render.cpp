@@ -108,18 +108,12 @@ void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalO
         quality::compare_renders(results[0].color, results[1].color, setup.exposure);
     const Image a = quality::tone_map(results[0].color, setup.exposure);
     const Image b = quality::tone_map(results[1].color, setup.exposure);
-    nlohmann::json metrics = {
-        {"a", args.compare[0]},
-        {"b", args.compare[1]},
-        {"scene", args.scene},
-        {"spp", results[0].spp},
-        {"exposure", setup.exposure},
-        {"de2000_mean", c.de2000_mean},
-        {"de2000_p95", c.de2000_p95},
-        {"ssim", c.ssim},
-        {"psnr_db", std::isfinite(c.psnr) ? nlohmann::json(c.psnr) : nlohmann::json(nullptr)},
-        {"heat_map_max", c.heat_max},
-    };
+    nlohmann::json metrics = quality::metrics_json(c);
+    metrics.update({{"a", args.compare[0]},
+                    {"b", args.compare[1]},
+                    {"scene", args.scene},
+                    {"spp", results[0].spp},
+                    {"exposure", setup.exposure}});
     AtomicOutputSet files;  // all five files or none
     write_image(files.add(outputs[0]), quality::side_by_side(a, b, c.heat_map));
     write_image(files.add(outputs[1]), a);
@@ -131,11 +125,9 @@ void run_compare(const RenderArgs& args, render::LoadOptions load, const GlobalO
         if (!out) fail("{}: cannot write", json_path);
     }
     files.commit();
-    std::printf(
-        "A: %s\nB: %s\nΔE00 mean %.3f, 95th percentile %.3f; SSIM %.4f; PSNR %.2f dB\n"
-        "%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n",
-        args.compare[0].c_str(), args.compare[1].c_str(), c.de2000_mean, c.de2000_p95, c.ssim,
-        c.psnr, args.output.c_str(), c.heat_max);
+    std::printf("A: %s\nB: %s\n%s\n%s: A | B | ΔE00 from 0 (dark) to %g (bright)\n",
+                args.compare[0].c_str(), args.compare[1].c_str(), quality::summary(c).c_str(),
+                args.output.c_str(), c.heat_max);
 }
 
 }  // namespace

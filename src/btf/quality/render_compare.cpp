@@ -76,6 +76,19 @@ RenderComparison compare_displays(const Image& ta, const Image& tb, double heat_
     return r;
 }
 
+nlohmann::json metrics_json(const RenderComparison& c) {
+    return {{"de2000_mean", c.de2000_mean},
+            {"de2000_p95", c.de2000_p95},
+            {"ssim", c.ssim},
+            {"psnr_db", std::isfinite(c.psnr) ? nlohmann::json(c.psnr) : nlohmann::json(nullptr)},
+            {"heat_map_max", c.heat_max}};
+}
+
+std::string summary(const RenderComparison& c) {
+    return fmt::format("ΔE00 mean {:.3f}, 95th percentile {:.3f}; SSIM {:.4f}; PSNR {:.2f} dB",
+                       c.de2000_mean, c.de2000_p95, c.ssim, c.psnr);
+}
+
 Image side_by_side(const Image& a, const Image& b, const Image& heat) {
     constexpr int kGap = 4;
     const int w = a.width(), h = a.height();

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "btf/core/image.h"
 
 namespace btf::quality {
@@ -41,6 +43,12 @@ RenderComparison compare_renders(const Image& a, const Image& b, double exposure
 /// differ.
 RenderComparison compare_displays(const Image& a_display, const Image& b_display,
                                   double heat_max = 0);
+
+/// The comparison's numbers as JSON: de2000_mean, de2000_p95, ssim, psnr_db (null when the
+/// images are identical) and heat_map_max.
+nlohmann::json metrics_json(const RenderComparison& c);
+/// "ΔE00 mean 0.363, 95th percentile 0.780; SSIM 0.9899; PSNR 40.73 dB".
+std::string summary(const RenderComparison& c);
 
 /// A, B and the heat map side by side, separated by 4-pixel gaps (display values).
 Image side_by_side(const Image& a_display, const Image& b_display, const Image& heat_map);
