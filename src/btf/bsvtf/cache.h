@@ -105,6 +105,22 @@ class TileCache {
     /// The cheapest swap of two resident tiles (never the last cover of anything).
     std::optional<Operation> cheapest_swap(const Votes& votes) const;
 
+    /// What decide() did.
+    struct Decision {
+        std::vector<Operation> operations;  ///< applied, in order
+        /// Set when the rule chose a swap whose ancestor is neither resident nor available: the
+        /// tile to ask for (the first one not available on the ancestor's path from the
+        /// coarsest level); decide() stops there.
+        std::optional<TileKey> wanted;
+    };
+    /// The decision rule of §5.2, applied: while a slot is free, the best add; when the cache is
+    /// full, the cheapest swap if it costs less than the best add gains, then that add; at most
+    /// `max_operations` operations. Only tiles for which `available(t)` is true (their data is
+    /// at hand) are added or brought back by a swap. The simulator and the web viewer
+    /// (web/src/cache.ts) run exactly this.
+    template <typename Available>
+    Decision decide(const Votes& votes, Available&& available, int max_operations);
+
     /// Applies an add (the parent must be resident and a slot free); throws btf::Error otherwise.
     void add(const TileKey& t);
     /// Applies a swap (both tiles resident, `ancestor` a common ancestor of both).
@@ -167,6 +183,34 @@ std::optional<std::array<float, 4>> sample_cached(const TileCache& cache, const 
             for (int c = 0; c < 4; ++c) out[size_t(c)] += wx[i] * wy[j] * texel[size_t(c)];
         }
     return out;
+}
+
+template <typename Available>
+TileCache::Decision TileCache::decide(const Votes& votes, Available&& available,
+                                      int max_operations) {
+    Decision d;
+    for (int op = 0; op < max_operations; ++op) {
+        const auto add = best_add(votes, [&](const TileKey& t) { return !available(t); });
+        if (!add) break;
+        if (m_size < m_capacity) {
+            this->add(add->tile);
+            d.operations.push_back(*add);
+            continue;
+        }
+        const auto swap = cheapest_swap(votes);
+        if (!swap || swap->value >= add->value) break;
+        if (!resident(swap->tile) && !available(swap->tile)) {
+            const TileLayout& l = *m_materials[size_t(swap->tile.material)].layout;
+            TileId t = swap->tile.id;
+            while (l.has_parent(t) && !available(TileKey{swap->tile.material, l.parent(t)}))
+                t = l.parent(t);
+            d.wanted = TileKey{swap->tile.material, t};
+            break;
+        }
+        this->swap(swap->tile, swap->out[0], swap->out[1]);
+        d.operations.push_back(*swap);
+    }
+    return d;
 }
 
 template <typename Fn>

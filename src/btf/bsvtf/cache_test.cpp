@@ -3,10 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <random>
+#include <set>
 
 #include <Eigen/Core>
 
+#include <nlohmann/json.hpp>
 #include "btf/bsvtf/cache.h"
 #include "btf/testing/support.h"
 
@@ -238,6 +241,119 @@ std::array<float, 4> through_coarser(const Pyramid& p, int level, int coarse, co
             for (int c = 0; c < 4; ++c) out[size_t(c)] += wx[i] * wy[j] * t[size_t(c)];
         }
     return out;
+}
+
+// The decisions of TileCache::decide on recorded votes, in web/test/data/cache-trace.json: the web
+// viewer's port of the cache (web/src/cache.ts) replays the same votes and must take exactly these
+// decisions (web/test/unit.test.mjs). This test keeps the file in step with the C++: it fails when
+// the decisions differ from the file; BTF_UPDATE_TRACE=1 rewrites it.
+nlohmann::json decision_trace() {
+    const std::vector<TileLayout> layouts = {
+        TileLayout(256, 256, {64, 4}, {{0, 0, 4}, {0, 4, 3}}),  // 3 levels, 2 groups
+        TileLayout(512, 256, {64, 4}, {{0, 0, 2}}),             // 4 levels, 1 group
+    };
+    std::mt19937 rng(20261201);
+    const auto uniform = [&] { return double(rng() >> 8) / double(1u << 24); };
+    std::vector<std::vector<float>> weights;
+    nlohmann::json materials = nlohmann::json::array();
+    for (const TileLayout& l : layouts) {
+        std::vector<float> w(l.tile_count());
+        for (size_t i = 0; i < w.size(); ++i)  // coarser tiles weigh more, as in real pyramids
+            w[i] = float((0.2 + uniform()) * double(1 << l.id(i).level));
+        nlohmann::json groups = nlohmann::json::array();
+        for (const Group& g : l.groups()) groups.push_back({g.plane, g.first, g.count});
+        materials.push_back({{"width", l.width()},
+                             {"height", l.height()},
+                             {"tile", l.geometry().tile},
+                             {"pad", l.geometry().pad},
+                             {"groups", groups},
+                             {"weights", w}});
+        weights.push_back(std::move(w));
+    }
+    TileCache cache({&layouts[0], &layouts[1]}, {&weights[0], &weights[1]}, 14);
+    Votes votes({&layouts[0], &layouts[1]});
+    const auto key_json = [](const TileKey& t) {
+        return nlohmann::json{t.material, t.id.group, t.id.level, t.id.x, t.id.y};
+    };
+    nlohmann::json frames = nlohmann::json::array();
+    for (int f = 0; f < 40; ++f) {
+        // A viewpoint that wanders over both materials and zooms in and out.
+        nlohmann::json pixels = nlohmann::json::array();
+        votes.clear();
+        const double cu = 0.5 + 0.45 * std::sin(f * 0.3), cv = 0.5 + 0.45 * std::cos(f * 0.2);
+        const int zoom = (f / 8) % 3;
+        for (int p = 0; p < 60; ++p) {
+            const int m = p % 3 == 0 ? 1 : 0;
+            const int level = std::max(0, zoom - 1 + int(uniform() * 2));
+            const double u = cu + (uniform() - 0.5) * 0.3, v = cv + (uniform() - 0.5) * 0.3;
+            votes.add(m, level, u, v);
+            pixels.push_back({m, level, u, v});
+        }
+        // Tiles whose data has not arrived yet.
+        std::set<std::pair<int, size_t>> missing;
+        nlohmann::json unavailable = nlohmann::json::array();
+        for (int m = 0; m < 2; ++m)
+            for (size_t i = 0; i < layouts[size_t(m)].tile_count(); ++i)
+                if ((i * 7 + size_t(f)) % 2 == 0 &&
+                    layouts[size_t(m)].id(i).level + 1 < layouts[size_t(m)].levels()) {
+                    missing.insert({m, i});
+                    unavailable.push_back({m, i});
+                }
+        const TileCache::Decision d = cache.decide(
+            votes,
+            [&](const TileKey& t) {
+                return !missing.count({t.material, layouts[size_t(t.material)].index(t.id)});
+            },
+            6);
+        EXPECT_EQ(cache.problems(), "") << "frame " << f;
+        nlohmann::json ops = nlohmann::json::array();
+        for (const TileCache::Operation& op : d.operations) {
+            const bool add = op.kind == TileCache::Operation::Kind::kAdd;
+            nlohmann::json o = {
+                {"kind", add ? "add" : "swap"}, {"tile", key_json(op.tile)}, {"value", op.value}};
+            if (!add) o["out"] = {key_json(op.out[0]), key_json(op.out[1])};
+            ops.push_back(std::move(o));
+        }
+        nlohmann::json resident = nlohmann::json::array();
+        for (const TileKey& t : cache.tiles()) resident.push_back(key_json(t));
+        frames.push_back({{"pixels", pixels},
+                          {"unavailable", unavailable},
+                          {"operations", ops},
+                          {"wanted", d.wanted ? key_json(*d.wanted) : nlohmann::json()},
+                          {"resident", resident}});
+    }
+    return {{"about",
+             "TileCache::decide on recorded votes (src/btf/bsvtf/cache_test.cpp writes it; "
+             "web/test/unit.test.mjs replays it)"},
+            {"capacity", 14},
+            {"max_operations", 6},
+            {"materials", materials},
+            {"frames", frames}};
+}
+
+TEST(TileCache, DecisionsMatchTheTraceTheWebViewerReplays) {
+    const nlohmann::json trace = decision_trace();
+    // Exercised: adds, swaps, and a swap waiting for an ancestor that has not arrived.
+    int adds = 0, swaps = 0, waits = 0;
+    for (const auto& f : trace["frames"]) {
+        for (const auto& op : f["operations"]) (op["kind"] == "add" ? adds : swaps) += 1;
+        waits += f["wanted"].is_null() ? 0 : 1;
+    }
+    EXPECT_GT(adds, 20);
+    EXPECT_GT(swaps, 10);
+    EXPECT_GT(waits, 0) << adds << " adds, " << swaps << " swaps";
+    const std::filesystem::path file =
+        std::filesystem::path(BTF_SOURCE_DIR) / "web/test/data/cache-trace.json";
+    if (std::getenv("BTF_UPDATE_TRACE")) {
+        std::filesystem::create_directories(file.parent_path());
+        std::ofstream(file) << trace.dump(1) << "\n";
+    }
+    std::ifstream in(file);
+    ASSERT_TRUE(in) << file << " is missing: run this test with BTF_UPDATE_TRACE=1";
+    const nlohmann::json recorded = nlohmann::json::parse(in);
+    EXPECT_TRUE(recorded == trace)
+        << file << " no longer matches TileCache::decide: check the change, mirror it in "
+        << "web/src/cache.ts, and rewrite the file with BTF_UPDATE_TRACE=1";
 }
 
 TEST(SampleCached, EveryPathReadsInsideItsTileAndGivesTheLevelsValue) {

@@ -87,7 +87,9 @@ Package make_bsvtf(const Package& fmf, const factor::Model& model, const Pyramid
             }
         out.sections.push_back(section(fmt::format("u{}", gi), std::move(u)));
     }
+    // Raw whatever the writer's zstd level: clients fetch single tiles by byte range.
     out.sections.push_back(section("tiles", std::move(tiles)));
+    out.sections.back().keep_raw = true;
     out.declared_sections = int(out.sections.size());
     return out;
 }

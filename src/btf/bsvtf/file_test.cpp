@@ -63,6 +63,25 @@ TEST(BsvtfFile, ReadsBackWhatWasWritten) {
     }
 }
 
+TEST(BsvtfFile, TilesAreStoredRawForByteRanges) {
+    const Fixture f = make("f16");
+    Package written = make_bsvtf(f.fmf, f.model, f.pyramid, f.encoded, 0.02);
+    PackageWriteOptions options;
+    options.zstd_level = 19;
+    const std::vector<uint8_t> bytes = encode_package(written, options);
+    const Package package = decode_package(bytes, "x.bsvtf");
+    const Bsvtf b = read_bsvtf(package, "x.bsvtf");
+    const PackageSection& tiles = package.at("tiles");
+    EXPECT_EQ(tiles.coding, SectionCoding::kRaw);
+    // A tile's payload is at the file offset the header and the index give.
+    const uint64_t start = bytes.size() - tiles.stored_size;  // the last section
+    for (size_t t = 0; t < b.layout.tile_count(); t += 7)
+        EXPECT_TRUE(std::equal(b.payload(t).begin(), b.payload(t).end(),
+                               bytes.begin() + int64_t(start + b.offsets[t])))
+            << t;
+    EXPECT_EQ(package.at("tables").coding, SectionCoding::kZstd);  // the others as asked
+}
+
 TEST(BsvtfFile, ErrorsNameTheProblem) {
     const Fixture f = make("f16");
     EXPECT_NE(test::error_of([&] {

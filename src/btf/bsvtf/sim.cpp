@@ -424,32 +424,17 @@ class Simulator {
 
     // The decision rule of §5.2 with what the store holds.
     void operate(SimFrame& frame) {
-        for (int op = 0; op < m_options.operations; ++op) {
-            const auto add =
-                m_cache->best_add(*m_votes, [&](const TileKey& t) { return !in_store(t); });
-            if (!add) return;
-            if (m_cache->size() < m_cache->capacity()) {
-                m_cache->add(add->tile);
-                ++frame.adds;
-                continue;
-            }
-            const auto swap = m_cache->cheapest_swap(*m_votes);
-            if (!swap || swap->value >= add->value) return;
-            if (!m_cache->resident(swap->tile) && !in_store(swap->tile)) {
-                // The ancestor to bring back left the store: ask for the first missing tile on
-                // its path from the coarsest level.
-                const Pyramid& p = m_materials[size_t(swap->tile.material)]->pyramid;
-                TileId t = swap->tile.id;
-                while (p.has_parent(t) && !in_store({swap->tile.material, p.parent(t)}))
-                    t = p.parent(t);
-                m_wanted.push_back({false, swap->tile.material, p.index(t),
-                                    m_materials[size_t(swap->tile.material)]
-                                        ->encoded.payloads[p.index(t)]
-                                        .size()});
-                return;
-            }
-            m_cache->swap(swap->tile, swap->out[0], swap->out[1]);
-            ++frame.swaps;
+        const TileCache::Decision d = m_cache->decide(
+            *m_votes, [&](const TileKey& t) { return in_store(t); }, m_options.operations);
+        for (const TileCache::Operation& op : d.operations)
+            (op.kind == TileCache::Operation::Kind::kAdd ? frame.adds : frame.swaps) += 1;
+        if (d.wanted) {
+            // The ancestor to bring back left the store: ask for it again.
+            const Pyramid& p = m_materials[size_t(d.wanted->material)]->pyramid;
+            const size_t i = p.index(d.wanted->id);
+            m_wanted.push_back(
+                {false, d.wanted->material, i,
+                 m_materials[size_t(d.wanted->material)]->encoded.payloads[i].size()});
         }
     }
 

@@ -117,7 +117,7 @@ std::vector<uint8_t> prepare(Package& package, const PackageWriteOptions& option
         Stored& out = stored[size_t(i)];
         out.bytes = &s.data;
         s.coding = SectionCoding::kRaw;
-        if (options.zstd_level > 0 && !s.data.empty()) {
+        if (options.zstd_level > 0 && !s.keep_raw && !s.data.empty()) {
             std::vector<uint8_t> frame(ZSTD_compressBound(s.data.size()));
             const size_t size = ZSTD_compress(frame.data(), frame.size(), s.data.data(),
                                               s.data.size(), options.zstd_level);

@@ -41,6 +41,9 @@ enum class SectionCoding { kRaw, kZstd };
 struct PackageSection {
     std::string name;
     std::vector<uint8_t> data;  ///< decoded bytes
+    /// Store the section raw whatever the zstd level, so that byte ranges of the file map to
+    /// byte ranges of the data (readers fetch parts of it, e.g. the tiles of a BSVTF).
+    bool keep_raw = false;
     // Storage, filled in by encode_package() and read_package():
     SectionCoding coding = SectionCoding::kRaw;
     uint64_t offset = 0;       ///< of the stored bytes, from the end of the JSON header

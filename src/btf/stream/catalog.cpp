@@ -33,11 +33,13 @@ std::string lower(std::string_view text) {
     return out;
 }
 
+// Packages: `.btfpkg`, and `.bsvtf` (the BSVTF packages of `btf bsvtf`, docs/bsvtf.md).
 bool has_package_extension(const fs::path& path) {
-    return lower(path.extension().string()) == ".btfpkg";
+    const std::string ext = lower(path.extension().string());
+    return ext == ".btfpkg" || ext == ".bsvtf";
 }
 
-// The file name without a `.btfpkg` extension (other names are kept whole: the id then says
+// The file name without its package extension (other names are kept whole: the id then says
 // which file it is).
 std::string package_stem(const fs::path& path) {
     return has_package_extension(path) ? path.stem().string() : path.filename().string();
@@ -198,7 +200,8 @@ Catalog Catalog::build(const std::vector<fs::path>& inputs) {
             if (e.is_regular_file(ec) && has_package_extension(e.path()))
                 packages.push_back(e.path());
         if (ec) fail("{}: cannot list the folder: {}", input.string(), ec.message());
-        if (packages.empty()) fail("{}: no *.btfpkg packages in this folder", input.string());
+        if (packages.empty())
+            fail("{}: no *.btfpkg or *.bsvtf packages in this folder", input.string());
         std::sort(packages.begin(), packages.end());
         for (const fs::path& p : packages) catalog.add(p);
     }

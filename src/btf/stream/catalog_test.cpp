@@ -112,6 +112,19 @@ TEST(Catalog, PrefixFilesListTheirPresentSections) {
                           longer.string(), bytes.size()));
 }
 
+TEST(Catalog, ListsBsvtfPackagesOfAFolder) {
+    TempFolder dir;
+    make_package(dir.path() / "stone.bsvtf", {10});
+    make_package(dir.path() / "cloth.btfpkg", {10});
+    write_file(dir.path() / "notes.txt", "not a package");
+    const Catalog catalog = Catalog::build({dir.path()});
+    ASSERT_EQ(catalog.size(), 2u);
+    EXPECT_EQ(catalog.entries()[0].id, "cloth");
+    EXPECT_EQ(catalog.entries()[1].id, "stone");
+    EXPECT_EQ(catalog.entries()[1].name, "stone");
+    EXPECT_EQ(catalog.entries()[1].to_json(true)["package"], "materials/stone.btfpkg");
+}
+
 TEST(Catalog, ReportsBadInputs) {
     TempFolder dir;
     const fs::path missing = dir.path() / "missing.btfpkg";
@@ -125,7 +138,7 @@ TEST(Catalog, ReportsBadInputs) {
     fs::create_directories(empty);
     write_file(empty / "notes.txt", "no packages here");
     EXPECT_EQ(error_of([&] { Catalog::build({empty}); }),
-              empty.string() + ": no *.btfpkg packages in this folder");
+              empty.string() + ": no *.btfpkg or *.bsvtf packages in this folder");
 
     // A package without the extent fields (a codec that does not write them).
     Package package;
