@@ -21,7 +21,7 @@ before(async () => {
   mkdirSync(path.dirname(out), { recursive: true });
   await build({
     stdin: {
-      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference"].map((m) => `export * from "./src/${m}";`).join("\n"),
+      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference", "cache"].map((m) => `export * from "./src/${m}";`).join("\n"),
       resolveDir: WEB,
       loader: "ts",
     },
@@ -324,4 +324,49 @@ test("the throttling proxy paces a server's bytes at the link rate and passes th
     await link.close();
     await new Promise((r) => origin.close(r));
   }
+});
+
+// ---- the BSVTF tile cache -------------------------------------------------------------------
+
+test("the tile cache takes the C++ decisions on the recorded votes (data/cache-trace.json)", () => {
+  // src/btf/bsvtf/cache_test.cpp records TileCache::decide frame by frame and keeps the file in
+  // step with the C++; here the port replays the same pixels and must decide identically.
+  const trace = JSON.parse(readFileSync(path.join(WEB, "test/data/cache-trace.json"), "utf8"));
+  const layouts = trace.materials.map((m) => new M.TileLayout(m.width, m.height, m.tile, m.pad, m.groups.map(([plane, first, count]) => ({ plane, first, count }))));
+  const cache = new M.TileCache(layouts, trace.materials.map((m) => Float32Array.from(m.weights)), trace.capacity);
+  const votes = new M.Votes(layouts);
+  const key = (t) => [t.material, t.group, t.level, t.x, t.y];
+  let operations = 0, swaps = 0, waits = 0;
+  trace.frames.forEach((f, frame) => {
+    votes.clear();
+    for (const [m, level, u, v] of f.pixels) votes.add(m, level, u, v);
+    const missing = new Set(f.unavailable.map(([m, i]) => `${m}/${i}`));
+    const d = cache.decide(votes, (t) => !missing.has(`${t.material}/${layouts[t.material].index(t)}`), trace.max_operations);
+    const got = d.operations.map((op) => {
+      const o = { kind: op.kind, tile: key(op.tile), value: op.value };
+      if (op.out) o.out = op.out.map(key);
+      return o;
+    });
+    assert.deepEqual(got, f.operations, `frame ${frame}: operations`);
+    assert.deepEqual(d.wanted ? key(d.wanted) : null, f.wanted, `frame ${frame}: wanted`);
+    assert.deepEqual(cache.tiles().map(key), f.resident, `frame ${frame}: resident tiles`);
+    operations += got.length;
+    swaps += got.filter((o) => o.kind === "swap").length;
+    waits += d.wanted ? 1 : 0;
+  });
+  assert.ok(operations > 100 && swaps > 10 && waits > 0, `${operations} operations, ${swaps} swaps, ${waits} waits`);
+});
+
+test("tile layout numbering and votes follow pyramid.h and cache.cpp", () => {
+  const l = new M.TileLayout(512, 256, 64, 4, [{ plane: 0, first: 0, count: 4 }, { plane: 0, first: 4, count: 2 }]);
+  assert.equal(l.levels, 4);
+  assert.equal(l.tilesPerGroup, 8 * 4 + 4 * 2 + 2 + 1);
+  for (let i = 0; i < l.tileCount; ++i) assert.equal(l.index(l.id(i)), i);
+  assert.deepEqual(l.id(l.tilesPerGroup + 8 * 4 + 5), { group: 1, level: 1, x: 1, y: 1 });
+  const votes = new M.Votes([l]);
+  votes.add(0, 0, (300 + 0.5) / 512, (70 + 0.5) / 256); // level-0 texel (300, 70): tile (4, 1)
+  assert.equal(votes.get(0, { group: 1, level: 0, x: 4, y: 1 }), 1);
+  assert.equal(votes.get(0, { group: 0, level: 1, x: 2, y: 0 }), 1);
+  assert.equal(votes.get(0, { group: 0, level: 3, x: 0, y: 0 }), 1);
+  assert.equal(votes.get(0, { group: 0, level: 0, x: 3, y: 1 }), 0);
 });
