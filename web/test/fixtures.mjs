@@ -55,6 +55,19 @@ export function makeFixtures() {
     }
     out[id] = file;
   }
+  // BSVTF packages of the first (btf bsvtf): tiles of 8 texels plus 4 of padding, so that the
+  // 32² material has three levels; lossy (the default 1 % tile error) and lossless.
+  for (const [name, extra] of [["woven_fabric.bsvtf", []], ["woven_lossless.bsvtf", ["--lossless"]]]) {
+    const file = path.join(FIXTURES, name);
+    const args = ["-q", "bsvtf", out.woven_fabric, "--tile", "8", "--pad", "4", ...extra, "-o", file];
+    const stamp = file + ".args";
+    if (!existsSync(file) || !existsSync(stamp) || readFileSync(stamp, "utf8") !== JSON.stringify(args)) {
+      run(bin, args);
+      writeFileSync(stamp, JSON.stringify(args));
+    }
+  }
+  out.bsvtf = path.join(FIXTURES, "woven_fabric.bsvtf");
+  out.bsvtfLossless = path.join(FIXTURES, "woven_lossless.bsvtf");
   // A package damaged in its third component section: the header and the first components read
   // fine, then the checksum of that section fails.
   const broken = path.join(FIXTURES, "woven_broken.btfpkg");

@@ -21,7 +21,7 @@ before(async () => {
   mkdirSync(path.dirname(out), { recursive: true });
   await build({
     stdin: {
-      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference", "cache"].map((m) => `export * from "./src/${m}";`).join("\n"),
+      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference", "cache", "bsvtf"].map((m) => `export * from "./src/${m}";`).join("\n"),
       resolveDir: WEB,
       loader: "ts",
     },
@@ -369,4 +369,71 @@ test("tile layout numbering and votes follow pyramid.h and cache.cpp", () => {
   assert.equal(votes.get(0, { group: 0, level: 1, x: 2, y: 0 }), 1);
   assert.equal(votes.get(0, { group: 0, level: 3, x: 0, y: 0 }), 1);
   assert.equal(votes.get(0, { group: 0, level: 0, x: 3, y: 1 }), 0);
+});
+
+/** Every tile of a BSVTF package decoded, parents first, as the viewer decodes them. */
+async function decodeAllTiles(file) {
+  const { header, sections } = readAll(bytesOf(file));
+  const info = M.readBsvtfHeader(header.json);
+  const layout = M.layoutOf(info);
+  const tilesSection = sections.find((x) => x.entry.name === "tiles");
+  assert.equal(tilesSection.entry.coding, "raw", "the tiles section is stored raw (byte ranges)");
+  const index = M.readTileIndex(sections.find((x) => x.entry.name === "tiles.index").data, info.tiles, tilesSection.data.length);
+  const tiles = new Array(layout.tileCount);
+  for (let level = layout.levels - 1; level >= 0; --level)
+    for (let t = 0; t < layout.tileCount; ++t) {
+      const id = layout.id(t);
+      if (id.level !== level) continue;
+      const payload = tilesSection.data.subarray(index.offsets[t], index.offsets[t] + index.sizes[t]);
+      const prediction = layout.hasParent(id) ? M.predictChild(tiles[layout.index(layout.parent(id))], layout, id) : null;
+      tiles[t] = await M.decodeTile(payload, prediction, layout);
+    }
+  return { info, layout, index, tiles };
+}
+
+test("BSVTF tiles decode to the eigen-textures: lossless exactly, lossy within the tile error", async () => {
+  const lossless = await decodeAllTiles(fx.packages.bsvtfLossless);
+  const lossy = await decodeAllTiles(fx.packages.bsvtf);
+  const { layout, info } = lossless;
+  assert.equal(layout.levels, 3);
+  assert.equal(info.groups.length, 2);
+  // The fmf package's eigen-texture columns b(·, k) (f16: the stored half bits).
+  const fmf = decode(fx.packages.woven_fabric);
+  const rows = M.blockRows(fmf.info);
+  const column = (k) => {
+    const s = fmf.sections.find((x) => x.entry.name === `b0.k${k}`);
+    return M.columnHalfBits(s.data, M.columnBytes("f16", rows), fmf.info.width * fmf.info.height);
+  };
+  const S = layout.stride, T = layout.tile, P = layout.pad, W = info.width, H = info.height;
+  let sum = 0, err = 0, checked = 0;
+  layout.groups.forEach((g, gi) => {
+    const b = Array.from({ length: g.count }, (_, c) => column(g.first + c));
+    for (let ty = 0; ty < layout.tilesY(0); ++ty)
+      for (let tx = 0; tx < layout.tilesX(0); ++tx) {
+        const t = layout.index({ group: gi, level: 0, x: tx, y: ty });
+        for (let ly = 0; ly < S; ++ly)
+          for (let lx = 0; lx < S; ++lx) {
+            // padding wraps around the texture
+            const x = (((tx * T + lx - P) % W) + W) % W, y = (((ty * T + ly - P) % H) + H) % H;
+            for (let c = 0; c < 4; ++c) {
+              const i = (ly * S + lx) * 4 + c;
+              const want = c < g.count ? b[c][y * W + x] : 0;
+              assert.equal(lossless.tiles[t][i], want, `group ${gi} tile (${tx}, ${ty}) texel (${lx}, ${ly}) channel ${c}`);
+              ++checked;
+              if (lx < P || ly < P || lx >= P + T || ly >= P + T) continue;
+              const v = M.halfToFloat(want), d = M.halfToFloat(lossy.tiles[t][i]) - v;
+              sum += v * v;
+              err += d * d;
+            }
+          }
+      }
+  });
+  assert.equal(checked, 2 * 16 * S * S * 4);
+  const relative = Math.sqrt(err / sum);
+  assert.ok(relative > 0 && relative <= lossy.info.relativeError, `relative RMS error ${relative} (bound ${lossy.info.relativeError})`);
+  // The index's weights are equation 8's, as written.
+  assert.ok(lossless.index.weights.every((w) => w >= 0) && lossless.index.weights.some((w) => w > 0));
+  // A damaged payload is an error, not a wrong tile.
+  const bad = new Uint8Array([1, 0, 0, 128, 63, 10, 0, 0, 0, 0xff, 0xff, 0xff]);
+  await assert.rejects(M.decodeTile(bad, null, layout), /tile: /);
 });
