@@ -3,10 +3,13 @@
 // at a time, so a burst of arriving components never stalls a frame.
 
 import * as THREE from "three";
+import type { BsvtfInfo, TileIndex } from "./bsvtf";
+import { TileLayout } from "./cache";
 import type { FmfInfo, Layout } from "./fmf";
 import type { FromWorker, InterpUniforms, ToWorker } from "./protocol";
 import { TABLE_WIDTH } from "./protocol";
-import { openStream, type MaterialEntry } from "./stream";
+import { MAX_TILE_LEVELS } from "./shader";
+import { fetchRange, openStream, type MaterialEntry } from "./stream";
 
 export interface MaterialState {
   id: string;
@@ -61,6 +64,12 @@ export class MaterialView {
   private tabF: THREE.DataTexture | null = null;
   private tabI: THREE.DataTexture | null = null;
   private haveTables = false;
+  /** BSVTF packages: the tile fields, layout and index (docs/bsvtf.md); null for fmf. */
+  bsvtf: { info: BsvtfInfo; layout: TileLayout; index: TileIndex | null; indirection: THREE.DataTexture } | null = null;
+  /** BSVTF: called with each tile the worker decoded (data null and an error when it failed). */
+  onTile: (index: number, data: Uint16Array | null, error: string | null) => void = () => {};
+  /** BSVTF: called when the tile index arrived. */
+  onTileIndex: () => void = () => {};
   private evalId = 0;
   private evalWaiting = new Map<number, (v: Float64Array) => void>();
 
@@ -108,7 +117,18 @@ export class MaterialView {
       uMipLevels: { value: 1 },
       uEnvScale: { value: 1 },
     };
-    if (entry.codec && entry.codec !== "fmf") {
+    if (entry.codec === "bsvtf")
+      Object.assign(this.uniforms, {
+        uIndir: { value: null },
+        uAtlas: { value: null },
+        uTile: { value: 64 },
+        uPad: { value: 4 },
+        uLevels: { value: 1 },
+        uTilesPerGroup: { value: 1 },
+        uLevelBase: { value: new Array(MAX_TILE_LEVELS).fill(0) },
+        uTilesX: { value: new Array(MAX_TILE_LEVELS).fill(1) },
+      });
+    if (entry.codec && entry.codec !== "fmf" && entry.codec !== "bsvtf") {
       // The list says so already: no need to download the package to refuse it.
       this.state.unsupported = true;
       this.state.error = `${entry.id}: codec '${entry.codec}' is not supported by the viewer (it renders fmf packages: btf compress --codec fmf)`;
@@ -120,6 +140,10 @@ export class MaterialView {
     worker.onmessage = (e: MessageEvent<FromWorker>) => this.receive(e.data);
     worker.onerror = (e: ErrorEvent) => this.setError(`${entry.id}: the decoding worker failed: ${e.message}`, false);
     this.send({ type: "start", name: entry.id });
+    if (entry.codec === "bsvtf") {
+      this.openPrefix(base);
+      return;
+    }
     this.stop = openStream(
       entry,
       base,
@@ -145,8 +169,49 @@ export class MaterialView {
     );
   }
 
+  // A BSVTF package: only its prefix up to the tile index comes at once (header, tables, means,
+  // tiles.index); U packets and tiles are fetched by byte range as the cache asks for them.
+  private openPrefix(base: string): void {
+    const entry = this.entry;
+    const index = entry.sections?.find((s) => s.name === "tiles.index");
+    if (!index) {
+      this.setError(`${entry.id}: the material list gives no section 'tiles.index' for this BSVTF package`, false);
+      return;
+    }
+    const abort = new AbortController();
+    this.stop = () => abort.abort();
+    this.state.transport = "http ranges";
+    fetchRange(entry, base, 0, index.offset + index.size, abort.signal).then(
+      (data) => {
+        this.state.bytes += data.length;
+        this.send({ type: "chunk", data: data.buffer as ArrayBuffer }, [data.buffer as ArrayBuffer]);
+        this.onProgress();
+      },
+      (e: Error) => this.setError(`${entry.id}: ${e.message}`, false),
+    );
+  }
+
+  /** BSVTF: hands a U packet's stored bytes to the worker (it answers with a component). */
+  decodePacket(name: string, stored: Uint8Array): void {
+    this.state.bytes += stored.length;
+    const copy = stored.slice();
+    this.send({ type: "packet", name, stored: copy.buffer }, [copy.buffer]);
+  }
+
+  /** BSVTF: hands a tile's payload and its parent's data to the worker (it answers onTile). */
+  decodeTile(index: number, payload: Uint8Array, parent: Uint16Array | null): void {
+    this.state.bytes += payload.length;
+    const copy = payload.slice();
+    this.send({ type: "tile", index, payload: copy.buffer, parent }, [copy.buffer]);
+  }
+
   private send(message: ToWorker, transfer: Transferable[] = []): void {
     this.worker?.postMessage(message, transfer);
+  }
+
+  /** Marks the material as failed (the message names it and the problem). */
+  fail(message: string): void {
+    this.setError(message, false);
   }
 
   private setError(message: string, unsupported: boolean): void {
@@ -171,6 +236,9 @@ export class MaterialView {
         return;
       case "section":
         this.state.sections = msg.index + 1;
+        return;
+      case "tile":
+        this.onTile(msg.index, msg.data, msg.error);
         return;
       default:
         this.pending.push(msg);
@@ -205,7 +273,7 @@ export class MaterialView {
     if (msg.type !== "header" && !this.info) return;
     switch (msg.type) {
       case "header":
-        return this.applyHeader(msg.info, msg.layout, msg.totalBytes);
+        return this.applyHeader(msg.info, msg.layout, msg.totalBytes, msg.bsvtf);
       case "tables": {
         this.tabF = new THREE.DataTexture(msg.tabF, TABLE_WIDTH, msg.tabFHeight, THREE.RGBAFormat, THREE.FloatType);
         this.tabI = new THREE.DataTexture(msg.tabI, TABLE_WIDTH, msg.tabIHeight, THREE.RGBAIntegerFormat, THREE.IntType);
@@ -233,16 +301,25 @@ export class MaterialView {
         const L = this.layout!;
         const aSize = L.aWidth * L.aHeight * 4, bSize = L.atlasWidth * L.atlasHeight * 4;
         (this.a!.image.data as Float32Array).set(msg.aLayer, msg.layer * aSize);
-        (this.b!.image.data as Float32Array | Uint16Array).set(msg.bLayer, msg.layer * bSize);
         this.a!.addLayerUpdate(msg.layer);
-        this.b!.addLayerUpdate(msg.layer);
         this.a!.needsUpdate = true;
-        this.b!.needsUpdate = true;
-        const counts = this.uniforms.uLayerCount.value as number[];
-        counts[msg.plane] = Math.max(counts[msg.plane], (msg.k >> 2) + 1);
+        if (msg.bLayer) {
+          (this.b!.image.data as Float32Array | Uint16Array).set(msg.bLayer, msg.layer * bSize);
+          this.b!.addLayerUpdate(msg.layer);
+          this.b!.needsUpdate = true;
+          const counts = this.uniforms.uLayerCount.value as number[];
+          counts[msg.plane] = Math.max(counts[msg.plane], (msg.k >> 2) + 1);
+        }
         this.state.components = msg.loaded;
         this.state.applied.push(msg.name);
+        if (this.haveTables && !this.bsvtf) this.markReady();
+        return;
+      }
+      case "tileIndex": {
+        const b = this.bsvtf!;
+        b.index = { weights: msg.weights, sizes: msg.sizes, offsets: msg.offsets };
         if (this.haveTables) this.markReady();
+        this.onTileIndex();
         return;
       }
       case "done":
@@ -259,8 +336,9 @@ export class MaterialView {
     this.state.times.ready ??= performance.now();
   }
 
-  private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number): void {
+  private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number, bsvtf: BsvtfInfo | null): void {
     const { maxTextureSize, maxArrayLayers } = this.limits;
+    if (bsvtf) return this.applyBsvtfHeader(info, layout, totalBytes, bsvtf);
     if (layout.atlasWidth > maxTextureSize || layout.atlasHeight > maxTextureSize || layout.aWidth > maxTextureSize || layout.aHeight > maxTextureSize)
       return this.setError(
         `${info.name}: ${info.width}×${info.height} texels with ${info.nV} views × ${info.nL} lights need textures larger than this GPU's ${maxTextureSize} texels`,
@@ -306,6 +384,41 @@ export class MaterialView {
     u.uMipLevels.value = layout.mipLevels;
   }
 
+  // A BSVTF package: the angular textures as for fmf, no eigen-texture atlas (the scene's tile
+  // cache holds the tiles), and an indirection texture from tile index to cache layer.
+  private applyBsvtfHeader(info: FmfInfo, layout: Layout, totalBytes: number, b: BsvtfInfo): void {
+    const tiles = new TileLayout(b.width, b.height, b.tile, b.pad, b.groups);
+    if (tiles.levels > MAX_TILE_LEVELS) return this.setError(`${info.name}: ${tiles.levels} tile levels, more than the viewer's ${MAX_TILE_LEVELS}`, true);
+    if (tiles.tilesX(0) > 255 || tiles.tilesY(0) > 255)
+      return this.setError(`${info.name}: ${tiles.tilesX(0)} × ${tiles.tilesY(0)} tiles per level, more than the feedback pass can name (255)`, true);
+    const width = Math.min(tiles.tileCount, TABLE_WIDTH), height = Math.ceil(tiles.tileCount / TABLE_WIDTH);
+    const indirection = new THREE.DataTexture(new Int32Array(width * height).fill(-1), width, height, THREE.RedIntegerFormat, THREE.IntType);
+    indirection.internalFormat = "R32I";
+    indirection.minFilter = indirection.magFilter = THREE.NearestFilter;
+    indirection.generateMipmaps = false;
+    indirection.needsUpdate = true;
+    this.bsvtf = { info: b, layout: tiles, index: null, indirection };
+    this.applyHeader(info, { ...layout, atlasWidth: 1, atlasHeight: 1, mipLevels: 1, mips: [layout.mips[0]] }, totalBytes, null);
+    this.state.total = this.entry.bytes ?? totalBytes;
+    this.state.codec = "bsvtf";
+    const u = this.uniforms;
+    u.uLayerCount.value = [0, 1, 2].map((p) => layout.layerCount[p] ?? 0); // a layers stay 0 until their U packet arrives
+    u.uIndir.value = indirection;
+    u.uTile.value = b.tile;
+    u.uPad.value = b.pad;
+    u.uLevels.value = tiles.levels;
+    u.uTilesPerGroup.value = tiles.tilesPerGroup;
+    u.uLevelBase.value = Array.from({ length: MAX_TILE_LEVELS }, (_, l) => tiles.levelBase[l] ?? 0);
+    u.uTilesX.value = Array.from({ length: MAX_TILE_LEVELS }, (_, l) => (l < tiles.levels ? tiles.tilesX(l) : 1));
+  }
+
+  /** BSVTF: the indirection texture now shows `slots` (per tile index: a cache layer or −1). */
+  setIndirection(slots: Int32Array): void {
+    const tex = this.bsvtf!.indirection;
+    (tex.image.data as Int32Array).set(slots);
+    tex.needsUpdate = true;
+  }
+
   /** The CPU evaluator's values (linear RGB per query; see ToWorker "eval"). */
   evaluate(queries: Float64Array, environment: boolean): Promise<Float64Array> {
     const id = ++this.evalId;
@@ -319,6 +432,6 @@ export class MaterialView {
   dispose(): void {
     this.stop?.();
     this.worker?.terminate();
-    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI]) t?.dispose();
+    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI, this.bsvtf?.indirection]) t?.dispose();
   }
 }

@@ -295,7 +295,11 @@ export class PackageStream {
     }
   }
 
-  private decodeSection(entry: SectionEntry, stored: Uint8Array, at: number): Uint8Array {
+  /**
+   * A section's decoded bytes from its stored bytes (checksum checked, zstd decompressed); `at`
+   * is its byte offset in the file, for messages. Also for sections fetched on their own.
+   */
+  decodeSection(entry: SectionEntry, stored: Uint8Array, at: number): Uint8Array {
     const computed = this.xxh64(stored);
     if (computed !== entry.xxh64)
       this.fail(`checksum mismatch in section '${entry.name}' (bytes ${at}..${at + entry.size}): stored ${entry.xxh64}, computed ${computed}`);

@@ -1,5 +1,6 @@
 // Messages between the page and the decoding worker (one worker per material).
 
+import type { BsvtfInfo } from "./bsvtf";
 import type { FmfInfo, Layout } from "./fmf";
 
 /** Uniform values that locate one direction set's tables in the table textures. */
@@ -29,10 +30,26 @@ export type ToWorker =
    * queries: per query u, v, wi (x, y, z), wo (x, y, z) in the local frame; with `environment`
    * the uniform environment's value at (u, v, wo) instead (wi unused).
    */
-  | { type: "eval"; id: number; queries: Float64Array; environment: boolean };
+  | { type: "eval"; id: number; queries: Float64Array; environment: boolean }
+  /** BSVTF: a section fetched on its own (a U packet "u<g>"), as stored in the file. */
+  | { type: "packet"; name: string; stored: ArrayBuffer }
+  /** BSVTF: a tile's payload and its parent's decoded half floats (null for a coarsest tile). */
+  | { type: "tile"; index: number; payload: ArrayBuffer; parent: Uint16Array | null };
 
 export type FromWorker =
-  | { type: "header"; info: FmfInfo; layout: Layout; totalBytes: number; sections: { name: string; offset: number; size: number }[] }
+  | {
+      type: "header";
+      info: FmfInfo;
+      layout: Layout;
+      totalBytes: number;
+      sections: { name: string; offset: number; size: number }[];
+      /** Set for a BSVTF package: the eigen-textures come as tiles, not in component sections. */
+      bsvtf: BsvtfInfo | null;
+    }
+  /** BSVTF: the tiles.index section. */
+  | { type: "tileIndex"; weights: Float32Array; sizes: Uint32Array; offsets: Float64Array }
+  /** BSVTF: a decoded tile, or why it could not be decoded. */
+  | { type: "tile"; index: number; data: Uint16Array | null; error: string | null }
   | {
       type: "tables";
       tabF: Float32Array;
@@ -52,7 +69,8 @@ export type FromWorker =
       k: number;
       layer: number;
       aLayer: Float32Array;
-      bLayer: Float32Array | Uint16Array;
+      /** null for a BSVTF U packet (the tiles hold b). */
+      bLayer: Float32Array | Uint16Array | null;
       loaded: number;
     }
   | { type: "section"; name: string; index: number; end: number }

@@ -54,6 +54,9 @@ export interface SceneSpec {
   debug: number;
   /** Where the material list is, relative to the page. */
   api: string;
+  /** BSVTF materials: the tile cache's side in texels ((cache / tile stride)² tiles, as
+   * `btf bsvtf-sim --cache`). */
+  cache: number;
 }
 
 export const DEBUG_MODES = ["", "uv", "normal", "tangent", "view", "light"];
@@ -101,6 +104,7 @@ export function defaultScene(): SceneSpec {
     snapshots: false,
     debug: 0,
     api: "api/materials",
+    cache: 2048,
   };
 }
 
@@ -193,6 +197,11 @@ export function sceneFromParams(params: URLSearchParams): SceneSpec {
     s.debug = d;
   }
   if (get("api") !== null) s.api = get("api")!;
+  if (get("cache") !== null) {
+    const c = numbers(get("cache")!, "cache", [1])[0];
+    if (!Number.isInteger(c) || c < 8 || c > 65536) throw new SceneError(`URL parameter 'cache': the tile cache's side in texels, an integer in [8, 65536], not '${get("cache")}'`);
+    s.cache = c;
+  }
   validate(s);
   return s;
 }
@@ -229,7 +238,7 @@ function allow(o: Json, keys: string[], where: string): void {
   for (const k of Object.keys(o)) if (!keys.includes(k)) throw new SceneError(`scene: ${where}: unknown key "${k}"`);
 }
 
-/** Material id of a scene material: "id", or a "file" whose name without .btfpkg is the id. */
+/** Material id of a scene material: "id", or a "file" whose name without .btfpkg or .bsvtf is the id. */
 function materialId(m: unknown, where: string): string | null {
   if (m === undefined) return null;
   if (typeof m !== "object" || m === null) throw new SceneError(`scene: ${where} must be an object`);
@@ -239,7 +248,7 @@ function materialId(m: unknown, where: string): string | null {
   if (typeof mat.id === "string") return mat.id;
   if (typeof mat.file === "string") {
     const base = mat.file.split(/[\\/]/).pop()!;
-    return base.replace(/\.btfpkg$/, "");
+    return base.replace(/\.(btfpkg|bsvtf)$/, "");
   }
   return null;
 }

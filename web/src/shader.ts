@@ -36,6 +36,46 @@ void main() {
 }
 `;
 
+const wrapLerpFunction = /* glsl */ `
+// wrap_lerp of btf_lookup.h: the two texels and the weight of the second.
+void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
+  float n = float(size);
+  float x = c * n - 0.5;
+  if (isnan(x) || isinf(x)) x = -0.5;
+  if (!(x >= 0.0 && x < n)) x -= n * floor(x / n);
+  if (!(x >= 0.0 && x < n)) x = 0.0;
+  i0 = int(x);
+  t = x - float(i0);
+  i1 = i0 + 1 == size ? 0 : i0 + 1;
+}
+`;
+
+/** The most tile levels a BSVTF material may have (textures up to 2^(MAX_TILE_LEVELS − 1) tiles). */
+export const MAX_TILE_LEVELS = 16;
+
+// Shared by the surface and the feedback shaders: the object's uv mapping and the pixel's
+// footprint, and the tile level a footprint needs.
+const uvFunctions = /* glsl */ `
+// The object's uv mapping, uv' = R(rotation) · (u · su, v · sv) (scene.cpp), and the screen
+// footprint of one pixel in level-0 texels of the mapped uv (\${uSize}), scaled by footprintScale.
+void mapUv(vec2 uv, vec2 dudx, vec2 dudy, float footprintScale, out vec2 uvm, out vec2 sx, out vec2 sy) {
+  mat2 uvRotation = mat2(uUvRotation.x, uUvRotation.y, -uUvRotation.y, uUvRotation.x);
+  uvm = uvRotation * (uv * uUvScale);
+  sx = uvRotation * (dudx * uUvScale) * vec2(uSize) * footprintScale;
+  sy = uvRotation * (dudy * uUvScale) * vec2(uSize) * footprintScale;
+}
+
+#ifdef BSVTF
+// Equation 1: the level whose texels are as large as the pixel's footprint (level 0 with
+// mip-mapping off), as the feedback pass requests it and the surface shows it.
+int tileLevel(vec2 sx, vec2 sy) {
+  if (uMip == 0) return 0;
+  float rho = max(length(sx), length(sy));
+  return rho > 1.0 ? min(int(floor(log2(rho))), uLevels - 1) : 0;
+}
+#endif
+`;
+
 export const fragmentShader = /* glsl */ `
 precision highp float;
 precision highp int;
@@ -46,6 +86,7 @@ precision highp isampler2D;
 #define MAX_LIGHTS ${MAX_LIGHTS}
 #define TABLE_WIDTH 1024
 #define PI 3.14159265358979
+#define MAX_TILE_LEVELS ${MAX_TILE_LEVELS}
 
 struct Interp {
   int R;
@@ -79,6 +120,16 @@ uniform float uLogEps;
 uniform ivec2 uSize;                 // material width, height
 uniform int uMipLevels;
 uniform int uMip;                    // 1: mip-mapped minification, 0: level 0 only (the C++ lookup)
+#ifdef BSVTF
+uniform highp sampler2DArray uAtlas; // the tile cache, one tile per layer
+uniform highp isampler2D uIndir;     // per tile index: its layer, or −1
+uniform int uTile;                   // tile size T and padding
+uniform int uPad;
+uniform int uLevels;
+uniform int uTilesPerGroup;
+uniform int uLevelBase[MAX_TILE_LEVELS];
+uniform int uTilesX[MAX_TILE_LEVELS];
+#endif
 
 uniform vec2 uUvScale;
 uniform vec2 uUvRotation;            // cos, sin of the uv rotation
@@ -102,6 +153,8 @@ in vec2 vUv;
 out vec4 fragColor;
 
 ivec2 tableTexel(int i) { return ivec2(i % TABLE_WIDTH, i / TABLE_WIDTH); }
+${wrapLerpFunction}
+${uvFunctions}
 int tableInt(int base, int k) { return texelFetch(uTabI, tableTexel(base + (k >> 2)), 0)[k & 3]; }
 
 // atan on [-1, 1] (Abramowitz & Stegun 4.4.49): the polynomial the C++ grid uses to find a cell.
@@ -175,18 +228,6 @@ Weights lookupWeights(Interp s, vec3 d) {
   return finishWeights(s, best, bestL);
 }
 
-// wrap_lerp of btf_lookup.h: the two texels and the weight of the second.
-void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
-  float n = float(size);
-  float x = c * n - 0.5;
-  if (isnan(x) || isinf(x)) x = -0.5;
-  if (!(x >= 0.0 && x < n)) x -= n * floor(x / n);
-  if (!(x >= 0.0 && x < n)) x = 0.0;
-  i0 = int(x);
-  t = x - float(i0);
-  i1 = i0 + 1 == size ? 0 : i0 + 1;
-}
-
 // One mip level's bilinear footprint in the atlas.
 struct Footprint {
   ivec2 p00, p10, p01, p11;
@@ -217,6 +258,87 @@ vec4 sampleB(Footprint f, int layer) {
   return f.w.x * texelFetch(uB, ivec3(f.p00, layer), 0) + f.w.y * texelFetch(uB, ivec3(f.p10, layer), 0) +
          f.w.z * texelFetch(uB, ivec3(f.p01, layer), 0) + f.w.w * texelFetch(uB, ivec3(f.p11, layer), 0);
 }
+
+#ifdef BSVTF
+// BSVTF mode (docs/bsvtf.md): the eigen-textures are tiles in a cache shared by every material,
+// one tile per layer of uAtlas; uIndir maps this material's tile index (TileLayout::index) to
+// its layer, or −1 when the tile is not resident or its data has not arrived. The lookup is
+// sample_cached of src/btf/bsvtf/cache.h.
+int tileSlot(int g, int level, int tx, int ty) {
+  int i = g * uTilesPerGroup + uLevelBase[level] + ty * uTilesX[level] + tx;
+  return texelFetch(uIndir, tableTexel(i), 0).r;
+}
+
+// TileCache::lookup and texel_from_tile: texel (x, y) of a level of group g from the tile the
+// cache shows there — its own, a coarser one (bilinear at the texel's centre) or finer ones (the
+// average of the texels below it). False when no tile with data covers it.
+bool cachedTexel(int g, int level, int x, int y, out vec4 texel) {
+  texel = vec4(0.0);
+  int tl = level, tx = x / uTile, ty = y / uTile;
+  int slot = tileSlot(g, tl, tx, ty);
+  while (slot < 0 && tl + 1 < uLevels) {
+    ++tl;
+    tx >>= 1;
+    ty >>= 1;
+    slot = tileSlot(g, tl, tx, ty);
+  }
+  if (slot < 0) {
+    for (int k = level - 1; k >= 0; --k) {
+      tx = (x << (level - k)) / uTile;
+      ty = (y << (level - k)) / uTile;
+      slot = tileSlot(g, k, tx, ty);
+      if (slot >= 0) {
+        tl = k;
+        break;
+      }
+    }
+    if (slot < 0) return false;
+  }
+  ivec2 origin = ivec2(tx, ty) * uTile - uPad;
+  if (tl == level) {
+    texel = texelFetch(uAtlas, ivec3(ivec2(x, y) - origin, slot), 0);
+    return true;
+  }
+  if (tl > level) {
+    float scale = 1.0 / float(1 << (tl - level));
+    vec2 p = (vec2(x, y) + 0.5) * scale - 0.5;
+    ivec2 i = ivec2(floor(p));
+    vec2 t = p - vec2(i);
+    ivec2 l = i - origin;
+    texel = texelFetch(uAtlas, ivec3(l, slot), 0) * (1.0 - t.x) * (1.0 - t.y) +
+            texelFetch(uAtlas, ivec3(l + ivec2(1, 0), slot), 0) * t.x * (1.0 - t.y) +
+            texelFetch(uAtlas, ivec3(l + ivec2(0, 1), slot), 0) * (1.0 - t.x) * t.y +
+            texelFetch(uAtlas, ivec3(l + ivec2(1, 1), slot), 0) * t.x * t.y;
+    return true;
+  }
+  int n = 1 << (level - tl);
+  ivec2 first = (ivec2(x, y) << (level - tl)) - origin;
+  int count = 0;
+  for (int ly = first.y; ly < first.y + n; ++ly)
+    for (int lx = first.x; lx < first.x + n; ++lx) {
+      if (lx < uPad || ly < uPad || lx >= uPad + uTile || ly >= uPad + uTile) continue;
+      ++count;
+      texel += texelFetch(uAtlas, ivec3(lx, ly, slot), 0);
+    }
+  if (count == 0) return false;
+  texel /= float(count);
+  return true;
+}
+
+// sample_cached: the group's four channels at uv on a level, bilinear from the cached texels;
+// nothing (0) when a texel has no data yet, as the C++ leaves such a group out.
+vec4 sampleCached(vec2 uv, int level, int g) {
+  int x0, x1, y0, y1;
+  float tx, ty;
+  wrapLerp(uv.x, max(1, uSize.x >> level), x0, x1, tx);
+  wrapLerp(uv.y, max(1, uSize.y >> level), y0, y1, ty);
+  vec4 t00, t10, t01, t11;
+  if (!cachedTexel(g, level, x0, y0, t00) || !cachedTexel(g, level, x1, y0, t10) ||
+      !cachedTexel(g, level, x0, y1, t01) || !cachedTexel(g, level, x1, y1, t11))
+    return vec4(0.0);
+  return (1.0 - tx) * (1.0 - ty) * t00 + tx * (1.0 - ty) * t10 + (1.0 - tx) * ty * t01 + tx * ty * t11;
+}
+#endif
 
 vec3 inverseColour(vec3 p) {
   vec3 v = p;
@@ -254,11 +376,8 @@ void main() {
   // Derivatives first, in uniform control flow.
   vec3 dpdx = dFdx(vPosition), dpdy = dFdy(vPosition);
   vec2 dudx = dFdx(vUv), dudy = dFdy(vUv);
-  mat2 uvRotation = mat2(uUvRotation.x, uUvRotation.y, -uUvRotation.y, uUvRotation.x);
-  vec2 uvm = uvRotation * (vUv * uUvScale);
-  // Screen footprint of one pixel in level-0 texels of the mapped uv.
-  vec2 sx = uvRotation * (dudx * uUvScale) * vec2(uSize);
-  vec2 sy = uvRotation * (dudy * uUvScale) * vec2(uSize);
+  vec2 uvm, sx, sy;
+  mapUv(vUv, dudx, dudy, 1.0, uvm, sx, sy);
 
   // The shading frame of Scene::intersect: interpolated normal, flipped when seen from behind
   // (two-sided surfaces); interpolated tangent made orthogonal to it; bitangent = n × t.
@@ -335,6 +454,10 @@ void main() {
 
   // Mip level from the screen footprint in level-0 texels; at or below 0 (magnification) the
   // lookup is exactly the C++ bilinear one.
+#ifdef BSVTF
+  // The level the feedback pass asks for (equation 1), without blending between levels.
+  int level = tileLevel(sx, sy);
+#else
   float lod = 0.0;
   if (uMip == 1) {
     float rho = max(length(sx), length(sy));
@@ -345,6 +468,7 @@ void main() {
   int level1 = min(level0 + 1, uMipLevels - 1);
   Footprint f0 = footprint(uvm, level0);
   Footprint f1 = footprint(uvm, level1);
+#endif
 
   vec3 direct[MAX_LIGHTS];
   for (int i = 0; i < MAX_LIGHTS; ++i) direct[i] = vec3(0.0);
@@ -358,8 +482,12 @@ void main() {
       int layer = j < 0 ? -1 : uLayerBase[p] + j;
       vec4 b = vec4(1.0);
       if (layer >= 0) {
+#ifdef BSVTF
+        b = sampleCached(uvm, level, layer);
+#else
         b = sampleB(f0, layer);
         if (levelBlend > 0.0) b = mix(b, sampleB(f1, layer), levelBlend);
+#endif
       }
       for (int vi = 0; vi < 3; ++vi) {
         float wv = vw.weight[vi];
@@ -387,5 +515,49 @@ void main() {
     if (lit[i]) radiance += max(inverseColour(direct[i]), 0.0) * irradiance[i] / PI;
   if (env) radiance += max(inverseColour(ambient), 0.0) * uEnvScale * uEnvRadiance;
   fragColor = vec4(toneMap(radiance), 1.0);
+}
+`;
+
+
+/**
+ * The feedback pass of the BSVTF mode, drawn at a fraction of the resolution: per pixel the
+ * material (index + 1; 0 = nothing or an object without BSVTF material), the tile level it needs
+ * (equation 1) and the tile of that level holding the lookup's first texel, as bytes. The page
+ * reads it back and counts votes (equation 9) as Votes::add does.
+ */
+export const feedbackFragmentShader = /* glsl */ `
+precision highp float;
+precision highp int;
+
+#define BSVTF 1
+
+uniform vec2 uUvScale;
+uniform vec2 uUvRotation;
+uniform ivec2 uSize;
+uniform int uMip;
+uniform int uLevels;
+uniform int uTile;
+uniform int uMaterialIndex;          // −1: an occluder
+uniform float uFootprintScale;       // full-resolution pixels per feedback pixel, inverted
+
+in vec2 vUv;
+
+out vec4 fragColor;
+${wrapLerpFunction}
+${uvFunctions}
+void main() {
+  vec2 dudx = dFdx(vUv), dudy = dFdy(vUv);
+  if (uMaterialIndex < 0) {
+    fragColor = vec4(0.0);
+    return;
+  }
+  vec2 uvm, sx, sy;
+  mapUv(vUv, dudx, dudy, uFootprintScale, uvm, sx, sy);
+  int level = tileLevel(sx, sy);
+  int x0, x1, y0, y1;
+  float tx, ty;
+  wrapLerp(uvm.x, max(1, uSize.x >> level), x0, x1, tx);
+  wrapLerp(uvm.y, max(1, uSize.y >> level), y0, y1, ty);
+  fragColor = vec4(float(uMaterialIndex + 1), float(level), float(x0 / uTile), float(y0 / uTile)) / 255.0;
 }
 `;

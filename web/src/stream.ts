@@ -183,3 +183,23 @@ export async function fetchMaterials(api: string, base: string): Promise<Materia
   if (!Array.isArray(json.materials)) throw new Error(`The material list at ${api} has no 'materials' array.`);
   return json.materials;
 }
+
+/**
+ * Bytes [from, to) of a material's package file by an HTTP Range request (BSVTF tiles and
+ * packets). Throws with a message naming the package when the server does not answer with
+ * exactly those bytes.
+ */
+export async function fetchRange(entry: MaterialEntry, base: string, from: number, to: number, signal?: AbortSignal): Promise<Uint8Array> {
+  const url = new URL(entry.package, base).toString();
+  let response: Response;
+  try {
+    response = await fetch(url, { headers: { Range: `bytes=${from}-${to - 1}` }, cache: "no-store", signal });
+  } catch (e) {
+    throw new Error(`${entry.package}: GET bytes ${from}–${to - 1} failed (${(e as Error).message || "network error"})`);
+  }
+  if (response.status !== 206)
+    throw new Error(`${entry.package}: the server answered a byte-range request with HTTP ${response.status} (BSVTF materials need Range support)`);
+  const data = new Uint8Array(await response.arrayBuffer());
+  if (data.length !== to - from) throw new Error(`${entry.package}: asked for ${to - from} bytes from byte ${from}, received ${data.length}`);
+  return data;
+}

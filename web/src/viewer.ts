@@ -9,6 +9,7 @@ import { toneMapChannel, traceHit, type RefCamera, type RefHit, type RefObject }
 import { DEBUG_MODES, SceneError, defaultObject, sceneFromParams, type LightSpec, type ObjectSpec, type SceneSpec, type V3 } from "./scene";
 import { MAX_LIGHTS, fragmentShader, vertexShader } from "./shader";
 import { fetchMaterials, type MaterialEntry } from "./stream";
+import { TileStreaming, defaultTileOptions, type TileStreamingState } from "./tilestream";
 
 // Colour values pass through untouched: the shader writes display-ready sRGB itself.
 THREE.ColorManagement.enabled = false;
@@ -61,6 +62,8 @@ export interface TimelineEntry {
   components: number;
   bytes: number;
   complete: boolean;
+  /** BSVTF materials: tiles shown from the cache. */
+  tiles: number;
   /** RGBA, top row first, base64 (with `snapshots=1`). */
   pixels?: string;
 }
@@ -78,6 +81,8 @@ class Viewer {
   frames = 0;
   frameMs = 0;
   readonly timeline: TimelineEntry[] = [];
+  /** The tile cache of the BSVTF materials. */
+  readonly tiles: TileStreaming;
   renderMs = 0;
   private lastFrame = 0;
   private renderQueued = false;
@@ -112,6 +117,8 @@ class Viewer {
       uMip: { value: 1 },
       uDebug: { value: 0 },
     };
+    this.tiles = new TileStreaming(this.base, { ...defaultTileOptions(), cacheTexels: spec.cache }, this.limits.maxArrayLayers, this.global.uMip);
+    this.tiles.onChange = () => this.requestRender();
     this.resize();
     window.addEventListener("resize", () => {
       this.resize();
@@ -199,6 +206,7 @@ class Viewer {
     m = new MaterialView(entry, this.workerUrl, this.base, this.spec.transport, this.limits);
     m.onChange = () => this.requestRender();
     m.onProgress = () => updateHud(this);
+    if (entry.codec === "bsvtf") m.onTileIndex = () => this.tiles.register(m!);
     this.materials.set(id, m);
     return m;
   }
@@ -236,6 +244,7 @@ class Viewer {
       vertexShader,
       fragmentShader,
       uniforms: { ...mat.uniforms, ...this.global, ...objectUniforms },
+      defines: mat.entry.codec === "bsvtf" ? { BSVTF: 1 } : {},
       side: THREE.DoubleSide,
     });
   }
@@ -277,6 +286,7 @@ class Viewer {
       frames: this.frames,
       frameMs: this.frameMs,
       renderMs: this.renderMs,
+      bsvtf: { ...this.tiles.state } as TileStreamingState,
       materials: [...this.materials.values()].map((m) => ({ ...m.state, applied: [...m.state.applied], times: { ...m.state.times } })),
       objects: this.objects.map((o) => ({ shape: o.spec.shape, material: o.materialId, visible: o.object.visible })),
     };
@@ -305,6 +315,9 @@ class Viewer {
       o.object.visible = s.ready;
     }
     const t0 = performance.now();
+    // BSVTF: feedback, requests and cache operations before the frame that uses them.
+    const objects = this.objects.map((o) => ({ object: o.object, material: this.materials.get(o.materialId)!, uniforms: o.uniforms }));
+    if (this.tiles.update(this.renderer, this.scene, this.camera, objects)) this.requestRender();
     this.renderer.render(this.scene, this.camera);
     this.renderMs = performance.now() - t0;
     this.frames += 1;
@@ -315,8 +328,9 @@ class Viewer {
   private record(): void {
     const s = this.state;
     const last = this.timeline[this.timeline.length - 1];
-    if (last && last.components === s.components && last.complete === s.complete) return;
-    const entry: TimelineEntry = { t: 0, frame: this.frames, components: s.components, bytes: s.bytes, complete: s.complete };
+    const tiles = s.bsvtf.shown;
+    if (last && last.components === s.components && last.complete === s.complete && last.tiles === tiles) return;
+    const entry: TimelineEntry = { t: 0, frame: this.frames, components: s.components, bytes: s.bytes, complete: s.complete, tiles };
     if (this.spec.snapshots) entry.pixels = this.pixels().data;
     entry.t = performance.now();
     this.timeline.push(entry);
@@ -436,6 +450,12 @@ function updateHud(v: Viewer): void {
         `${s.components}/${s.totalComponents || "?"} components · ${s.transport || "…"} · ${status}`,
     );
   }
+  const t = v.tiles.state;
+  if (t.capacity > 0)
+    lines.push(
+      `tile cache: ${t.shown} shown / ${t.resident} resident / ${t.capacity} · tiles ${formatBytes(t.tileBytes)}, U packets ${formatBytes(t.packetBytes)} · ` +
+        `${t.inFlight} in flight · ${t.settled ? "settled" : "refining"}`,
+    );
   const fps = v.frameMs > 0 ? ` (${(1000 / v.frameMs).toFixed(0)} fps)` : "";
   lines.push(`frame ${v.spec.deterministic ? v.renderMs.toFixed(1) : v.frameMs.toFixed(1)} ms${v.spec.deterministic ? " (on demand)" : fps} · submit ${v.renderMs.toFixed(1)} ms · frame #${v.frames}`);
   hud.textContent = lines.join("\n");

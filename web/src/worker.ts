@@ -15,7 +15,9 @@ import {
   type FmfInfo,
   type Layout,
 } from "./fmf";
-import { floatToHalf } from "./half";
+import { decodeTile, layoutOf, predictChild, readBsvtfHeader, readTileIndex, type BsvtfInfo } from "./bsvtf";
+import type { TileLayout } from "./cache";
+import { floatToHalf, halfToFloat } from "./half";
 import { lookup, readTablesSection, uniformEnvironmentWeights, type InterpTables } from "./interp";
 import { PackageStream, loadChecksum, type Checksum, type DecodedSection, type PackageHeader } from "./package";
 import { TABLE_WIDTH, type FromWorker, type InterpUniforms, type ToWorker } from "./protocol";
@@ -36,6 +38,10 @@ let envWeights: Float64Array | null = null;
 let aLayers: Float32Array[] = [];
 let bLayers: (Float32Array | Uint16Array)[] = [];
 let failed = false;
+/** BSVTF packages: the tile fields and layout (null for fmf packages). */
+let bsvtf: BsvtfInfo | null = null;
+let tileLayout: TileLayout | null = null;
+let header: PackageHeader | null = null;
 
 // The checksum's WebAssembly module is instantiated once, when the worker starts; messages that
 // arrive before it is ready wait in `pending` and are then handled in order.
@@ -55,21 +61,107 @@ function fail(e: unknown): void {
   post({ type: "error", message: message.startsWith(name) ? message : `${name}: ${message}`, unsupported: e instanceof UnsupportedMaterial });
 }
 
-function onHeader(header: PackageHeader): void {
-  info = readFmfHeader(name, header.json);
+function onHeader(h: PackageHeader): void {
+  header = h;
+  if (h.json.codec === "bsvtf") {
+    // A BSVTF package (docs/bsvtf.md): the fmf header of its source describes the angular part;
+    // the eigen-textures come as tiles (requested by the page), the angular factors as U packets.
+    try {
+      bsvtf = readBsvtfHeader(h.json);
+      tileLayout = layoutOf(bsvtf);
+    } catch (e) {
+      throw new Error(`${name}: package (bsvtf): ${(e as Error).message}`);
+    }
+    const source = h.json.source;
+    if (!source || typeof source !== "object") throw new Error(`${name}: package (bsvtf): header field 'source' is missing`);
+    info = readFmfHeader(name, source as Record<string, unknown>);
+  } else {
+    info = readFmfHeader(name, h.json);
+  }
   layout = makeLayout(info);
   model = new FmfModel(info);
-  const aSize = layout.aWidth * layout.aHeight * 4;
-  const bSize = layout.atlasWidth * layout.atlasHeight * 4;
-  aLayers = Array.from({ length: layout.layers }, () => new Float32Array(aSize));
-  bLayers = Array.from({ length: layout.layers }, () => (layout!.half ? new Uint16Array(bSize) : new Float32Array(bSize)));
+  const L = layout;
+  if (bsvtf) {
+    // The shader reads group g's four components from a-layer g.
+    bsvtf.groups.forEach((g, gi) => {
+      if (L.layerBase[g.plane] + (g.first >> 2) !== gi || g.first % 4 !== 0)
+        throw new UnsupportedMaterial(`${name}: component group ${gi} (plane ${g.plane}, components ${g.first}…) does not match the viewer's layers`);
+    });
+  }
+  const aSize = L.aWidth * L.aHeight * 4;
+  const bSize = bsvtf ? 0 : L.atlasWidth * L.atlasHeight * 4;
+  aLayers = Array.from({ length: L.layers }, () => new Float32Array(aSize));
+  bLayers = Array.from({ length: L.layers }, () => (L.half ? new Uint16Array(bSize) : new Float32Array(bSize)));
   post({
     type: "header",
     info,
-    layout,
-    totalBytes: header.totalBytes,
-    sections: header.sections.map((s) => ({ name: s.name, offset: header.headerBytes + s.offset, size: s.size })),
+    layout: L,
+    totalBytes: h.totalBytes,
+    sections: h.sections.map((s) => ({ name: s.name, offset: h.headerBytes + s.offset, size: s.size })),
+    bsvtf,
   });
+}
+
+// Writes component k of `plane`'s a column into its a-layer lane, with the environment column.
+function packA(plane: number, k: number, a: Float32Array): number {
+  const i = info!, L = layout!;
+  const layer = L.layerBase[plane] + (k >> 2), lane = k & 3;
+  const C = i.channels, nL = i.nL, W = L.aWidth;
+  const aLayer = aLayers[layer];
+  for (let v = 0; v < i.nV; ++v) {
+    const slot = i.slotOfView[v];
+    for (let ch = 0; ch < C; ++ch) {
+      let env = 0;
+      for (let l = 0; l < nL; ++l) {
+        const x = a[(slot * nL + l) * C + ch];
+        aLayer[(v * W + l * C + ch) * 4 + lane] = x;
+        env += envWeights![l] * x;
+      }
+      aLayer[(v * W + nL * C + ch) * 4 + lane] = env;
+    }
+  }
+  return layer;
+}
+
+let packetsLoaded = 0;
+
+// A U packet u<g>: the a columns of group g's components (file.h), f16 or f32.
+function onPacket(packetName: string, stored: Uint8Array): void {
+  const b = bsvtf!, i = info!;
+  const m = /^u(\d+)$/.exec(packetName);
+  const entry = header!.sections.find((s) => s.name === packetName);
+  if (!m || !entry || Number(m[1]) >= b.groups.length) throw new Error(`package (bsvtf): no U packet '${packetName}'`);
+  if (!envWeights) throw new Error(`section '${packetName}' arrives before section 'tables' (the viewer needs the tables first)`);
+  const data = stream!.decodeSection(entry, stored, header!.headerBytes + entry.offset);
+  const g = b.groups[Number(m[1])];
+  const rows = blockRows(i), size = b.uFormat === "f16" ? 2 : 4;
+  if (data.length !== rows * g.count * size) throw new Error(`section '${packetName}' holds ${data.length} bytes, expected ${rows * g.count * size}`);
+  const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
+  let layer = 0;
+  for (let c = 0; c < g.count; ++c) {
+    const a = new Float32Array(rows);
+    for (let r = 0; r < rows; ++r) {
+      const at = (c * rows + r) * size;
+      a[r] = size === 2 ? halfToFloat(view.getUint16(at, true)) : view.getFloat32(at, true);
+    }
+    layer = packA(g.plane, g.first + c, a);
+  }
+  packetsLoaded += g.count;
+  const aCopy = aLayers[layer].slice();
+  post({ type: "component", name: packetName, plane: g.plane, k: g.first, layer, aLayer: aCopy, bLayer: null, loaded: packetsLoaded }, [aCopy.buffer]);
+}
+
+async function onTile(index: number, payload: Uint8Array, parent: Uint16Array | null): Promise<void> {
+  const L = tileLayout!;
+  try {
+    const id = L.id(index);
+    if (L.hasParent(id) !== (parent !== null)) throw new Error("tile: the parent's data is missing");
+    const prediction = parent ? predictChild(parent, L, id) : null;
+    const data = await decodeTile(payload, prediction, L);
+    post({ type: "tile", index, data, error: null }, [data.buffer]);
+  } catch (e) {
+    post({ type: "tile", index, data: null, error: `${name}: tile ${index}: ${(e as Error).message}` });
+  }
 }
 
 // Packs both direction sets into one float texture (inverse rows) and one int texture
@@ -152,25 +244,20 @@ function onSection(s: DecodedSection): void {
     post({ type: "means", data }, [data.buffer]);
     return;
   }
+  if (sectionName === "tiles.index" && bsvtf) {
+    const tiles = header!.sections.find((x) => x.name === "tiles");
+    if (!tiles || tiles.coding !== "raw") throw new Error("package (bsvtf): section 'tiles' is missing or not stored raw (its tiles are fetched by byte range)");
+    const index = readTileIndex(s.data, bsvtf.tiles, tiles.size);
+    post({ type: "tileIndex", ...index }, [index.weights.buffer, index.sizes.buffer, index.offsets.buffer]);
+    return;
+  }
   if (!/^b\d+\.k\d+$/.test(sectionName)) return; // sections of no concern to the viewer
   if (!envWeights) throw new Error(`section '${sectionName}' arrives before section 'tables' (the viewer needs the tables first)`);
   const { block, k } = m.addComponent(sectionName, s.data);
-  const layer = L.layerBase[block] + (k >> 2), lane = k & 3;
-  const a = m.a[block][k], b = m.b[block][k];
-  const C = i.channels, nL = i.nL, W = L.aWidth;
+  const layer = packA(block, k, m.a[block][k]);
+  const lane = k & 3;
   const aLayer = aLayers[layer];
-  for (let v = 0; v < i.nV; ++v) {
-    const slot = i.slotOfView[v];
-    for (let ch = 0; ch < C; ++ch) {
-      let env = 0;
-      for (let l = 0; l < nL; ++l) {
-        const x = a[(slot * nL + l) * C + ch];
-        aLayer[(v * W + l * C + ch) * 4 + lane] = x;
-        env += envWeights[l] * x;
-      }
-      aLayer[(v * W + nL * C + ch) * 4 + lane] = env;
-    }
-  }
+  const b = m.b[block][k];
   const bLayer = bLayers[layer];
   const mips = mipChain(L, b);
   // f16 packages: level 0 keeps the stored half bits (exact); the averaged levels are rounded.
@@ -229,6 +316,12 @@ function handle(msg: ToWorker): void {
         return;
       case "eval":
         evaluate(msg.id, msg.queries, msg.environment);
+        return;
+      case "packet":
+        if (!failed && bsvtf) onPacket(msg.name, new Uint8Array(msg.stored));
+        return;
+      case "tile":
+        if (!failed && tileLayout) void onTile(msg.index, new Uint8Array(msg.payload), msg.parent);
         return;
     }
   } catch (e) {

@@ -114,18 +114,21 @@ CatalogEntry describe_package(const fs::path& path) {
 
     read_package_fields(what, [&] {
         entry.codec = package.codec();
-        const nlohmann::json& h = package.header;
-        entry.width = h.at("width").get<int>();
-        entry.height = h.at("height").get<int>();
-        entry.views = int(h.at("views").at("theta").size());
-        entry.lights = int(h.at("lights").at("theta").size());
+        // A BSVTF package describes its material in the header of the fmf package it was made
+        // from (bsvtf/file.h).
+        const nlohmann::json& material =
+            entry.codec == "bsvtf" ? package.header.at("source") : package.header;
+        entry.width = material.at("width").get<int>();
+        entry.height = material.at("height").get<int>();
+        entry.views = int(material.at("views").at("theta").size());
+        entry.lights = int(material.at("lights").at("theta").size());
         check(entry.width > 0 && entry.height > 0, "extent {}x{} texels is empty", entry.width,
               entry.height);
         check(entry.views > 0 && entry.lights > 0, "sampling of {} views x {} lights is empty",
               entry.views, entry.lights);
         // The reader has validated the table: offsets are contiguous from 0.
         const uint64_t available = entry.bytes - entry.header_bytes;
-        for (const nlohmann::json& s : h.at("sections")) {
+        for (const nlohmann::json& s : package.header.at("sections")) {
             const uint64_t offset = s.at("offset").get<uint64_t>();
             const uint64_t size = s.at("size").get<uint64_t>();
             const std::string name = s.at("name").get<std::string>();

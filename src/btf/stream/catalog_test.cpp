@@ -115,6 +115,17 @@ TEST(Catalog, PrefixFilesListTheirPresentSections) {
 TEST(Catalog, ListsBsvtfPackagesOfAFolder) {
     TempFolder dir;
     make_package(dir.path() / "stone.bsvtf", {10});
+    {
+        // A BSVTF package: its extent and sampling are those of its source (bsvtf/file.h).
+        Package b;
+        b.header = {{"codec", "bsvtf"},
+                    {"source",
+                     {{"width", 16},
+                      {"height", 8},
+                      {"views", {{"theta", {0.0}}, {"phi", {0.0}}}},
+                      {"lights", {{"theta", {0.0, 0.3}}, {"phi", {0.0, 1.0}}}}}}};
+        write_package(dir.path() / "stone.bsvtf", b);
+    }
     make_package(dir.path() / "cloth.btfpkg", {10});
     write_file(dir.path() / "notes.txt", "not a package");
     const Catalog catalog = Catalog::build({dir.path()});
@@ -123,6 +134,9 @@ TEST(Catalog, ListsBsvtfPackagesOfAFolder) {
     EXPECT_EQ(catalog.entries()[1].id, "stone");
     EXPECT_EQ(catalog.entries()[1].name, "stone");
     EXPECT_EQ(catalog.entries()[1].to_json(true)["package"], "materials/stone.btfpkg");
+    EXPECT_EQ(catalog.entries()[1].codec, "bsvtf");
+    EXPECT_EQ(catalog.entries()[1].width, 16);
+    EXPECT_EQ(catalog.entries()[1].lights, 2);
 }
 
 TEST(Catalog, ReportsBadInputs) {
