@@ -23,7 +23,7 @@ before(async () => {
   rmSync(OUT, { recursive: true, force: true });
   mkdirSync(OUT, { recursive: true });
   const viewer = buildViewer(path.join(OUT, "viewer"));
-  serve = await startBtfServe(fx.bin, [fx.packages.bsvtf, "--web", viewer]);
+  serve = await startBtfServe(fx.bin, [fx.packages.bsvtf, fx.packages.bsvtfLossless, "--web", viewer]);
   closers.push(() => serve.close());
   browser = await launchBrowser();
   closers.push(() => browser.close());
@@ -91,5 +91,37 @@ test("BSVTF mode: the tile cache refines the frames as tiles arrive and settles 
   } finally {
     await page.close();
     await link.close();
+  }
+});
+
+test("BSVTF mode: two materials share a cache too small for both and it never overflows", async () => {
+  // cache=64 holds (64 / 16)² = 16 tiles: the two materials' coarsest tiles (4) and some of the
+  // 2 × 32 finest tiles the spheres show, so the decision rule has to swap.
+  const view = scene("woven_fabric.bsvtf");
+  view.camera.position = [0, 0.6, 4.5];
+  view.objects = [
+    { shape: "sphere", uv_scale: 2, position: [-0.8, 0, 0], scale: 0.7, material: { type: "btf", id: "woven_fabric" } },
+    { shape: "sphere", uv_scale: 2, position: [0.8, 0, 0], scale: 0.7, material: { type: "btf", id: "woven_lossless" } },
+  ];
+  const { page, problems } = await openPage(browser, serve.url, `scene=${encodeURIComponent(JSON.stringify(view))}&deterministic=1&hud=0&cache=64`);
+  try {
+    await page.waitForFunction(() => window.btfViewer.state.complete || window.btfViewer.state.error, null, { timeout: 90000 });
+    await render(page);
+    const s = await state(page);
+    assert.equal(s.error, null);
+    assert.deepEqual(s.objects.map((o) => [o.material, o.visible]), [["woven_fabric", true], ["woven_lossless", true]]);
+    const b = s.bsvtf;
+    assert.equal(b.capacity, 16);
+    assert.ok(b.settled && b.resident <= 16 && b.shown === b.resident, JSON.stringify(b));
+    assert.ok(b.swaps > 0, `the cache never had to choose: ${JSON.stringify(b)}`);
+    const frame = await pixels(page);
+    writePpm(path.join(OUT, "two-materials.ppm"), frame);
+    await page.locator("canvas").screenshot({ path: path.join(OUT, "two-materials.png") });
+    // Both spheres are drawn (not the background): the centre row crosses both.
+    const row = SIZE / 2, lit = (x) => frame.data.subarray((row * SIZE + x) * 4, (row * SIZE + x) * 4 + 3).some((v) => v > 20);
+    assert.ok(lit(Math.round(SIZE * 0.3)) && lit(Math.round(SIZE * 0.7)));
+    assert.deepEqual(problems, []);
+  } finally {
+    await page.close();
   }
 });
