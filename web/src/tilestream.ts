@@ -96,7 +96,7 @@ export class TileStreaming {
   private wanted: TileKey[] = [];
   private target: THREE.WebGLRenderTarget | null = null;
   private pixels = new Uint8Array(0);
-  private readonly feedbackMaterials = new WeakMap<THREE.Mesh, { material: THREE.RawShaderMaterial; index: THREE.IUniform }>();
+  private readonly feedbackMaterials = new WeakMap<THREE.Mesh, { view: MaterialView; material: THREE.RawShaderMaterial; index: THREE.IUniform }>();
 
   constructor(
     private readonly base: string,
@@ -257,7 +257,8 @@ export class TileStreaming {
   private feedbackMaterial(o: TileObject, divisor: number): THREE.RawShaderMaterial {
     let f = this.feedbackMaterials.get(o.object);
     const mi = this.materials.findIndex((m) => m.view === o.material);
-    if (!f) {
+    if (!f || f.view !== o.material) {
+      f?.material.dispose();
       const index: THREE.IUniform = { value: -1 };
       const u = o.material.uniforms;
       const material = new THREE.RawShaderMaterial({
@@ -276,7 +277,7 @@ export class TileStreaming {
         },
         side: THREE.DoubleSide,
       });
-      f = { material, index };
+      f = { view: o.material, material, index };
       this.feedbackMaterials.set(o.object, f);
     }
     f.index.value = mi;
@@ -293,9 +294,11 @@ export class TileStreaming {
       index: number;
     }
     const wants: Want[] = [];
+    const seen = new Set<string>();
     const want = (priority: number, material: number, index: number) => {
       const key = index >= 0 ? this.key(material, index) : `${material}/u${-1 - index}`;
-      if (this.inFlight.has(key) || (index >= 0 && this.store.has(key))) return;
+      if (this.inFlight.has(key) || seen.has(key) || (index >= 0 && this.store.has(key))) return;
+      seen.add(key);
       wants.push({ priority, material, index });
     };
     const resident = cache.tiles();
