@@ -157,6 +157,7 @@ export class TileStreaming {
     this.inFlight.delete(key);
     if (!data) {
       this.materials[mi].view.fail(error ?? `tile ${index} could not be decoded`);
+      this.onChange();
       return;
     }
     this.put(key, data);
@@ -191,6 +192,10 @@ export class TileStreaming {
   update(renderer: THREE.WebGLRenderer, scene: THREE.Scene, camera: THREE.Camera, objects: TileObject[]): boolean {
     const cache = this.cache;
     if (!cache) return false;
+    // A material that failed takes no more requests: its requests in flight are forgotten, its
+    // pixels vote for nothing and its tiles are not asked for.
+    for (const [mi, m] of this.materials.entries())
+      if (m.view.state.error) for (const key of this.inFlight) if (key.startsWith(`${mi}/`)) this.inFlight.delete(key);
     for (const [mi, m] of this.materials.entries())
       m.packets.forEach((have, g) => {
         if (have || !m.view.state.applied.includes(`u${g}`)) return;
@@ -213,10 +218,16 @@ export class TileStreaming {
     s.inFlight = this.inFlight.size;
     s.settled = d.operations.length === 0 && !d.wanted && asked === 0 && this.inFlight.size === 0;
     for (const m of this.materials) {
+      if (m.view.state.error) continue; // done, with its error
       m.view.state.done = m.view.state.complete = s.settled;
       m.view.state.components = m.packets.reduce((n, have, g) => n + (have ? m.view.bsvtf!.info.groups[g].count : 0), 0);
     }
-    return d.operations.length > 0 || !!d.wanted;
+    // Another frame now only if it would decide more; arrivals ask for frames themselves.
+    return d.operations.length > 0 || (!!d.wanted && !this.inFlight.has(this.tileKey(d.wanted)));
+  }
+
+  private failed(mi: number): boolean {
+    return !!this.materials[mi].view.state.error;
   }
 
   private feedback(renderer: THREE.WebGLRenderer, scene: THREE.Scene, camera: THREE.Camera, objects: TileObject[]): void {
@@ -247,6 +258,7 @@ export class TileStreaming {
     for (let i = 0; i < p.length; i += 4) {
       if (p[i] === 0 || p[i] > this.materials.length) continue;
       const mi = p[i] - 1;
+      if (this.failed(mi)) continue;
       const l = this.cache!.layout(mi);
       const level = Math.min(p[i + 1], l.levels - 1);
       votes.addTile(mi, level, Math.min(p[i + 2], l.tilesX(level) - 1), Math.min(p[i + 3], l.tilesY(level) - 1));
@@ -297,7 +309,7 @@ export class TileStreaming {
     const seen = new Set<string>();
     const want = (priority: number, material: number, index: number) => {
       const key = index >= 0 ? this.key(material, index) : `${material}/u${-1 - index}`;
-      if (this.inFlight.has(key) || seen.has(key) || (index >= 0 && this.store.has(key))) return;
+      if (this.failed(material) || this.inFlight.has(key) || seen.has(key) || (index >= 0 && this.store.has(key))) return;
       seen.add(key);
       wants.push({ priority, material, index });
     };
@@ -367,7 +379,11 @@ export class TileStreaming {
         this.state.packetBytes += data.length;
         m.view.decodePacket(name, data);
       },
-      (e: Error) => m.view.fail(`${m.view.entry.id}: ${e.message}`),
+      (e: Error) => {
+        this.inFlight.delete(`${mi}/${name}`);
+        m.view.fail(`${m.view.entry.id}: ${e.message}`);
+        this.onChange();
+      },
     );
   }
 
@@ -384,7 +400,9 @@ export class TileStreaming {
           const id = layout.id(i);
           const parent = layout.hasParent(id) ? this.store.get(this.key(mi, layout.index(layout.parent(id)))) : null;
           if (parent === undefined) {
-            this.inFlight.delete(this.key(mi, i)); // its parent left the store: asked for again later
+            // Its parent left the store meanwhile: asked for again by a later frame.
+            this.inFlight.delete(this.key(mi, i));
+            this.onChange();
             continue;
           }
           m.view.decodeTile(i, data.subarray(index.offsets[i] - from, index.offsets[i] - from + index.sizes[i]), parent);
@@ -393,6 +411,7 @@ export class TileStreaming {
       (e: Error) => {
         for (const i of run) this.inFlight.delete(this.key(mi, i));
         m.view.fail(`${m.view.entry.id}: ${e.message}`);
+        this.onChange();
       },
     );
   }

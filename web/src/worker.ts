@@ -321,7 +321,9 @@ function handle(msg: ToWorker): void {
         if (!failed && bsvtf) onPacket(msg.name, new Uint8Array(msg.stored));
         return;
       case "tile":
-        if (!failed && tileLayout) void onTile(msg.index, new Uint8Array(msg.payload), msg.parent);
+        // Always answered, so that the page never waits for a tile of a failed material.
+        if (failed || !tileLayout) post({ type: "tile", index: msg.index, data: null, error: `${name}: tile ${msg.index}: the material failed before it` });
+        else void onTile(msg.index, new Uint8Array(msg.payload), msg.parent);
         return;
     }
   } catch (e) {

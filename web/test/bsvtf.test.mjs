@@ -5,7 +5,7 @@
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { mkdirSync, rmSync, writeFileSync } from "node:fs";
+import { mkdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import path from "node:path";
 import { launchBrowser, meanDiff, openPage, pixels, render, snapshot, state, timeline, writePpm } from "./browser.mjs";
 import { ARTIFACTS, buildViewer, makeFixtures, run } from "./fixtures.mjs";
@@ -123,5 +123,30 @@ test("BSVTF mode: two materials share a cache too small for both and it never ov
     assert.deepEqual(problems, []);
   } finally {
     await page.close();
+  }
+});
+
+test("BSVTF mode: a damaged tile fails its material with a message naming it, and the page does not hang", async () => {
+  // The first payload of section 'tiles' (a coarsest tile, the first one asked for) with an
+  // unknown format byte. Tiles carry no checksum of their own; the decoder refuses them.
+  const bytes = Buffer.from(readFileSync(fx.packages.bsvtf));
+  const h = bytes.readUInt32LE(12);
+  const header = JSON.parse(bytes.subarray(24, 24 + h).toString("utf8"));
+  const tiles = header.sections.find((x) => x.name === "tiles");
+  bytes[24 + h + tiles.offset] = 7;
+  const damaged = path.join(OUT, "woven_damaged.bsvtf");
+  writeFileSync(damaged, bytes);
+  const server = await startBtfServe(fx.bin, [damaged, "--web", path.join(OUT, "viewer")]);
+  const { page, problems } = await openPage(browser, server.url, `deterministic=1&hud=0&size=96x96`);
+  try {
+    await page.waitForFunction(() => window.btfViewer.state.error, null, { timeout: 60000 });
+    const s = await state(page);
+    assert.match(s.error, /^woven_damaged: tile \d+: tile: unknown format 7$/);
+    assert.equal(s.done, true);
+    assert.match(await page.locator("#message").innerText(), /woven_damaged: tile \d+: tile: unknown format 7/);
+    assert.deepEqual(problems, []);
+  } finally {
+    await page.close();
+    await server.close();
   }
 });
