@@ -338,19 +338,21 @@ export class MaterialView {
 
   private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number, bsvtf: BsvtfInfo | null): void {
     const { maxTextureSize, maxArrayLayers } = this.limits;
-    if (bsvtf) return this.applyBsvtfHeader(info, layout, totalBytes, bsvtf);
-    if (layout.atlasWidth > maxTextureSize || layout.atlasHeight > maxTextureSize || layout.aWidth > maxTextureSize || layout.aHeight > maxTextureSize)
+    // A BSVTF material has no eigen-texture atlas: the page's tile cache holds its tiles.
+    const atlas = bsvtf ? 0 : Math.max(layout.atlasWidth, layout.atlasHeight);
+    if (atlas > maxTextureSize || layout.aWidth > maxTextureSize || layout.aHeight > maxTextureSize)
       return this.setError(
         `${info.name}: ${info.width}×${info.height} texels with ${info.nV} views × ${info.nL} lights need textures larger than this GPU's ${maxTextureSize} texels`,
         true,
       );
     if (layout.layers > maxArrayLayers)
       return this.setError(`${info.name}: ${info.totalComponents} components need ${layout.layers} texture layers, more than this GPU's ${maxArrayLayers}`, true);
+    if (bsvtf && !this.applyTileHeader(info, bsvtf)) return;
     this.info = info;
     this.layout = layout;
-    this.state.total = totalBytes;
+    this.state.total = bsvtf ? (this.entry.bytes ?? totalBytes) : totalBytes;
     this.state.totalComponents = info.totalComponents;
-    this.state.codec = "fmf";
+    this.state.codec = bsvtf ? "bsvtf" : "fmf";
     const layers = layout.layers;
     const make = (data: Float32Array | Uint16Array, w: number, h: number, d: number, format: THREE.PixelFormat, type: THREE.TextureDataType) => {
       const t = new THREE.DataArrayTexture(data, w, h, d);
@@ -363,10 +365,12 @@ export class MaterialView {
       return t;
     };
     this.a = make(new Float32Array(layout.aWidth * layout.aHeight * 4 * layers), layout.aWidth, layout.aHeight, layers, THREE.RGBAFormat, THREE.FloatType);
-    const bSize = layout.atlasWidth * layout.atlasHeight * 4 * layers;
-    this.b = layout.half
-      ? make(new Uint16Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.HalfFloatType)
-      : make(new Float32Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+    if (!bsvtf) {
+      const bSize = layout.atlasWidth * layout.atlasHeight * 4 * layers;
+      this.b = layout.half
+        ? make(new Uint16Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.HalfFloatType)
+        : make(new Float32Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+    }
     this.means = make(new Float32Array(layout.aWidth * layout.aHeight * info.planes), layout.aWidth, layout.aHeight, info.planes, THREE.RedFormat, THREE.FloatType);
     const u = this.uniforms;
     u.uA.value = this.a;
@@ -376,7 +380,9 @@ export class MaterialView {
     u.uChannels.value = info.channels;
     u.uNL.value = info.nL;
     u.uLayerBase.value = [layout.layerBase[0] ?? 0, layout.layerBase[1] ?? 0, layout.layerBase[2] ?? 0];
-    u.uLayerCount.value = [0, 0, 0];
+    // fmf: layers count once their component arrived; BSVTF: all of them, each a layer staying 0
+    // until its U packet arrives.
+    u.uLayerCount.value = bsvtf ? [0, 1, 2].map((p) => layout.layerCount[p] ?? 0) : [0, 0, 0];
     u.uColour.value = info.colour === "rgb" ? 0 : info.colour === "decorrelated" ? 1 : 2;
     u.uLog.value = info.log ? 1 : 0;
     u.uLogEps.value = info.logEps;
@@ -384,13 +390,19 @@ export class MaterialView {
     u.uMipLevels.value = layout.mipLevels;
   }
 
-  // A BSVTF package: the angular textures as for fmf, no eigen-texture atlas (the scene's tile
-  // cache holds the tiles), and an indirection texture from tile index to cache layer.
-  private applyBsvtfHeader(info: FmfInfo, layout: Layout, totalBytes: number, b: BsvtfInfo): void {
+  // A BSVTF package's tile layout, its indirection texture (tile index → cache layer) and the
+  // uniforms the shader's cache lookup reads; false (and the material's error) when the viewer
+  // cannot show it.
+  private applyTileHeader(info: FmfInfo, b: BsvtfInfo): boolean {
     const tiles = new TileLayout(b.width, b.height, b.tile, b.pad, b.groups);
-    if (tiles.levels > MAX_TILE_LEVELS) return this.setError(`${info.name}: ${tiles.levels} tile levels, more than the viewer's ${MAX_TILE_LEVELS}`, true);
-    if (tiles.tilesX(0) > 255 || tiles.tilesY(0) > 255)
-      return this.setError(`${info.name}: ${tiles.tilesX(0)} × ${tiles.tilesY(0)} tiles per level, more than the feedback pass can name (255)`, true);
+    if (tiles.levels > MAX_TILE_LEVELS) {
+      this.setError(`${info.name}: ${tiles.levels} tile levels, more than the viewer's ${MAX_TILE_LEVELS}`, true);
+      return false;
+    }
+    if (tiles.tilesX(0) > 255 || tiles.tilesY(0) > 255) {
+      this.setError(`${info.name}: ${tiles.tilesX(0)} × ${tiles.tilesY(0)} tiles per level, more than the feedback pass can name (255)`, true);
+      return false;
+    }
     const width = Math.min(tiles.tileCount, TABLE_WIDTH), height = Math.ceil(tiles.tileCount / TABLE_WIDTH);
     const indirection = new THREE.DataTexture(new Int32Array(width * height).fill(-1), width, height, THREE.RedIntegerFormat, THREE.IntType);
     indirection.internalFormat = "R32I";
@@ -398,11 +410,7 @@ export class MaterialView {
     indirection.generateMipmaps = false;
     indirection.needsUpdate = true;
     this.bsvtf = { info: b, layout: tiles, index: null, indirection };
-    this.applyHeader(info, { ...layout, atlasWidth: 1, atlasHeight: 1, mipLevels: 1, mips: [layout.mips[0]] }, totalBytes, null);
-    this.state.total = this.entry.bytes ?? totalBytes;
-    this.state.codec = "bsvtf";
     const u = this.uniforms;
-    u.uLayerCount.value = [0, 1, 2].map((p) => layout.layerCount[p] ?? 0); // a layers stay 0 until their U packet arrives
     u.uIndir.value = indirection;
     u.uTile.value = b.tile;
     u.uPad.value = b.pad;
@@ -410,6 +418,7 @@ export class MaterialView {
     u.uTilesPerGroup.value = tiles.tilesPerGroup;
     u.uLevelBase.value = Array.from({ length: MAX_TILE_LEVELS }, (_, l) => tiles.levelBase[l] ?? 0);
     u.uTilesX.value = Array.from({ length: MAX_TILE_LEVELS }, (_, l) => (l < tiles.levels ? tiles.tilesX(l) : 1));
+    return true;
   }
 
   /** BSVTF: the indirection texture now shows `slots` (per tile index: a cache layer or −1). */
