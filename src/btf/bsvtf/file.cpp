@@ -6,6 +6,7 @@
 
 #include "btf/util/error.h"
 #include "btf/util/half.h"
+#include "btf/util/json_fields.h"
 
 namespace btf::bsvtf {
 
@@ -110,21 +111,31 @@ Bsvtf read_bsvtf(const Package& package, const std::string& what) {
         source.declared_sections = int(source.sections.size());  // only the angular part
         out.model = factor::from_package(source);
         std::vector<Group> groups;
-        for (const auto& g : h.at("groups")) {
-            const Group group{g.at(0).get<int>(), g.at(1).get<int>(), g.at(2).get<int>()};
+        const auto& group_list = h.at("groups");
+        if (!group_list.is_array() || group_list.empty() || group_list.size() > 4096)
+            fail("'groups' must be an array of 1 to 4096 groups");
+        for (const auto& g : group_list) {
+            const std::vector<int> v = json_fields::integers(g, "groups", 0, 4096, 3);
+            if (v.size() != 3) fail("a group must be [plane, first, count]");
+            const Group group{v[0], v[1], v[2]};
             if (group.plane < 0 || group.plane >= out.model.colour.planes() || group.first < 0 ||
                 group.count < 1 || group.count > 4)
                 fail("group [{}, {}, {}] is out of range", group.plane, group.first, group.count);
             groups.push_back(group);
         }
-        out.layout = TileLayout(h.at("width").get<int>(), h.at("height").get<int>(),
-                                {h.at("tile").get<int>(), h.at("pad").get<int>()}, groups);
-        if (out.layout.width() != out.model.width || out.layout.height() != out.model.height ||
-            out.layout.levels() != h.at("levels").get<int>() ||
-            out.layout.tile_count() != h.at("tiles").get<size_t>())
+        const int width = int(json_fields::integer_at(h, "width", 1, 1 << 16));
+        const int height = int(json_fields::integer_at(h, "height", 1, 1 << 16));
+        if (width != out.model.width || height != out.model.height)
             fail("the tile layout disagrees with the header");
-        out.step = h.at("step").get<float>();
-        out.relative_error = h.at("relative_error").get<double>();
+        out.layout = TileLayout(width, height,
+                                {int(json_fields::integer_at(h, "tile", 1, 1 << 16)),
+                                 int(json_fields::integer_at(h, "pad", 0, 1 << 16))},
+                                groups);
+        if (out.layout.levels() != json_fields::integer_at(h, "levels", 1, 64) ||
+            int64_t(out.layout.tile_count()) != json_fields::integer_at(h, "tiles", 0, INT64_MAX))
+            fail("the tile layout disagrees with the header");
+        out.step = float(json_fields::number_at(h, "step", 0, 1e30));
+        out.relative_error = json_fields::number_at(h, "relative_error", 0, 1e30);
         const std::string u_format = h.at("u_format").get<std::string>();
         if (u_format != "f16" && u_format != "f32") fail("u_format '{}'", u_format);
         const size_t u_bytes = u_format == "f16" ? 2 : 4;

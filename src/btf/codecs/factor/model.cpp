@@ -12,6 +12,8 @@
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/color.h"
 #include "btf/util/error.h"
+#include "btf/util/json_fields.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf::factor {
@@ -369,6 +371,10 @@ std::string component_name(int block, int k) {
     return fmt::format("b{}.k{}", block, k);
 }
 
+// Directions a package may declare per set: far more than any measurement dome (151), few enough
+// that triangulating them stays fast.
+constexpr size_t kMaxDirections = 16384;
+
 PackageSection named_section(std::string name) {
     PackageSection s;
     s.name = std::move(name);
@@ -387,12 +393,20 @@ nlohmann::json directions_json(const DirectionSet& set) {
 }
 
 DirectionSet directions_from_json(const nlohmann::json& j) {
+    json_fields::only_keys(j, "directions", {"name", "theta", "phi"});
     const auto& theta = j.at("theta");
     const auto& phi = j.at("phi");
-    if (!theta.is_array() || theta.size() != phi.size()) fail("direction arrays differ in length");
+    if (!theta.is_array() || !phi.is_array() || theta.size() != phi.size())
+        fail("direction arrays differ in length");
+    if (theta.empty() || theta.size() > kMaxDirections)
+        fail("{} directions (1 to {} allowed)", theta.size(), kMaxDirections);
+    // Radians: θ on the upper hemisphere, φ within one turn either way (a little slack for
+    // rounding at the ends).
+    constexpr double kSlack = 1e-6;
     std::vector<Direction> dirs;
     for (size_t i = 0; i < theta.size(); ++i)
-        dirs.push_back({theta[i].get<double>(), phi[i].get<double>()});
+        dirs.push_back({json_fields::number(theta[i], "theta", -kSlack, kPi / 2 + kSlack),
+                        json_fields::number(phi[i], "phi", -2 * kPi - kSlack, 2 * kPi + kSlack)});
     return DirectionSet(j.at("name").get<std::string>(), std::move(dirs));
 }
 
@@ -485,24 +499,26 @@ Model from_package(const Package& package) {
     return read_package_fields(what, [&] {
         const auto& h = package.header;
         Model model;
-        model.width = h.at("width").get<int>();
-        model.height = h.at("height").get<int>();
-        if (model.width < 1 || model.height < 1 || model.width > (1 << 16) ||
-            model.height > (1 << 16))
-            fail("bad extent {}×{}", model.width, model.height);
+        model.width = int(json_fields::integer_at(h, "width", 1, 1 << 16));
+        model.height = int(json_fields::integer_at(h, "height", 1, 1 << 16));
+        check_image_size(model.width, model.height, "extent");
         model.sampling.views = directions_from_json(h.at("views"));
         model.sampling.lights = directions_from_json(h.at("lights"));
         model.hdr = h.value("hdr", false);
         const auto& m = h.at("model");
         model.colour.basis = parse_colour_basis(m.at("colour").get<std::string>());
         model.colour.log = m.at("log").get<bool>();
-        model.colour.log_eps = m.at("log_eps").get<float>();
+        model.colour.log_eps = float(json_fields::number_at(m, "log_eps", 0, 1e30));
         const Quantization q = parse_quantization(m.at("quantization").get<std::string>());
-        model.groups = m.at("groups").get<std::vector<std::vector<int>>>();
-        model.clusters = m.at("clusters").get<int>();
-        if (model.clusters < 1 || model.clusters > model.width * model.height)
-            fail("{} clusters", model.clusters);
-        model.levels = m.value("levels", 1);
+        const int views = model.sampling.views.size();
+        const auto& groups = m.at("groups");
+        if (!groups.is_array() || groups.empty() || int64_t(groups.size()) > views)
+            fail("'groups' must be an array of 1 to {} view groups", views);
+        for (const auto& g : groups)
+            model.groups.push_back(json_fields::integers(g, "groups", 0, views - 1, views));
+        model.clusters =
+            int(json_fields::integer_at(m, "clusters", 1, int64_t(model.width) * model.height));
+        model.levels = int(json_fields::integer_or(m, "levels", 1, 1, 16));
         if (model.levels < 1 || model.levels > 16 ||
             (model.levels > 1 &&
              (model.clusters != 1 || model.width % (1 << (model.levels - 1)) != 0 ||
@@ -511,8 +527,11 @@ Model from_package(const Package& package) {
                  model.height, model.clusters);
         if (m.contains("angular_levels")) {
             for (const auto& a : m.at("angular_levels"))
-                model.angular_levels.push_back({a.at("views").get<std::vector<int>>(),
-                                                a.at("lights").get<std::vector<int>>()});
+                model.angular_levels.push_back(
+                    // Exact integers here; angular_levels_problem() says which are out of range.
+                    {json_fields::integers(a.at("views"), "views", INT32_MIN, INT32_MAX, views),
+                     json_fields::integers(a.at("lights"), "lights", INT32_MIN, INT32_MAX,
+                                           model.sampling.lights.size())});
             if (model.angular_levels.empty() || model.angular_levels.size() > 15)
                 fail("{} angular levels", model.angular_levels.size());
             const std::string problem =
@@ -546,12 +565,18 @@ Model from_package(const Package& package) {
         // Validate groups and clusters before sizing blocks from them.
         for (size_t i = 0; i < blocks.size(); ++i) {
             Block& b = model.blocks[i];
-            b.plane = blocks[i].at("plane").get<int>();
-            b.group = blocks[i].at("group").get<int>();
-            b.cluster = blocks[i].at("cluster").get<int>();
-            b.level = blocks[i].value("level", 0);
-            b.angular = blocks[i].value("angular", 0);
-            declared[i] = blocks[i].at("components").get<int>();
+            const auto& bj = blocks[i];
+            json_fields::only_keys(
+                bj, "block",
+                {"plane", "group", "cluster", "components", "mean", "energy", "level", "angular"});
+            b.plane = int(json_fields::integer_at(bj, "plane", 0, planes - 1));
+            b.group =
+                int(json_fields::integer_at(bj, "group", 0, int64_t(model.groups.size()) - 1));
+            b.cluster = int(json_fields::integer_at(bj, "cluster", 0, model.clusters - 1));
+            b.level = int(json_fields::integer_or(bj, "level", 0, 0, model.levels - 1));
+            b.angular =
+                int(json_fields::integer_or(bj, "angular", 0, 0, model.angular_count() - 1));
+            declared[i] = int(json_fields::integer_at(bj, "components", 0, 4096));
             if (b.plane < 0 || b.plane >= planes || b.group < 0 ||
                 b.group >= static_cast<int>(model.groups.size()) || b.cluster < 0 ||
                 b.cluster >= model.clusters || b.level < 0 || b.level >= model.levels ||
@@ -568,6 +593,7 @@ Model from_package(const Package& package) {
             Block& b = model.blocks[i];
             const int64_t rows = model.block_rows(b.group, b.angular);
             if (blocks[i].at("mean").get<bool>()) {
+                check_alloc(uint64_t(rows) * 4, "header", fmt::format("the mean of block {}", i));
                 b.mean.assign(rows, 0.0f);
                 if (means) {
                     if (means->data.size() < (mean_at + rows) * 4)
@@ -585,7 +611,12 @@ Model from_package(const Package& package) {
         for (const PackageSection& s : package.sections) {
             int block = -1, k = -1;
             char tail = 0;
-            if (std::sscanf(s.name.c_str(), "b%d.k%d%c", &block, &k, &tail) != 2) continue;
+            if (std::sscanf(s.name.c_str(), "b%d.k%d%c", &block, &k, &tail) != 2 ||
+                s.name != component_name(block, k)) {
+                if (s.name != "tables" && s.name != "clusters" && s.name != "means")
+                    fail("unknown section '{}'", s.name);
+                continue;
+            }
             if (block < 0 || block >= static_cast<int>(blocks.size()) || k != present[block] ||
                 k >= declared[block])
                 fail("component section '{}' is out of order or undeclared", s.name);
@@ -614,6 +645,26 @@ Model from_package(const Package& package) {
                 in = get_column(q, in, b.a.data() + c, b.a.rows(), k);
                 get_column(q, in, b.b.data() + c, b.b.rows(), k);
             }
+            // Non-finite numbers are refused where they enter, not where they would leave as
+            // NaN pixels.
+            if (!b.a.allFinite() || !b.b.allFinite() ||
+                !std::all_of(b.mean.begin(), b.mean.end(),
+                             [](float x) { return std::isfinite(x); }) ||
+                !std::all_of(energy.begin(), energy.end(),
+                             [](float x) { return std::isfinite(x); }))
+                fail("block {}: a mean, factor or energy is not a finite number", i);
+        }
+        // The tables are the viewer's copy of the interpolation tables the evaluator builds from
+        // the directions: they must be exactly those, or the browser would not show this material.
+        if (const PackageSection* tables = package.find("tables")) {
+            std::vector<uint8_t> expected;
+            append_tables(expected, model.sampling.views);
+            append_tables(expected, model.sampling.lights);
+            if (tables->data != expected)
+                fail(
+                    "section 'tables' ({} bytes) is not the tables of the header's directions ({} "
+                    "bytes)",
+                    tables->data.size(), expected.size());
         }
         model.validate(what);
         return model;

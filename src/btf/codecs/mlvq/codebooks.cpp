@@ -8,6 +8,7 @@
 
 #include "btf/core/color.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 
 namespace btf::mlvq {
 
@@ -203,6 +204,17 @@ class BitReader {
             ++m_pos;
         }
     }
+    /// Before allocating `count` entries of `bits_each` bits: the section must hold them. Entries
+    /// of no bits (indices into a one-entry code-book) are bounded by the allocation limit.
+    void reserve(uint64_t count, int bits_each, size_t entry_bytes, std::string_view book) {
+        const uint64_t left = (uint64_t(m_in.size()) - m_pos) * 8 - uint64_t(m_bit);
+        const auto bits = checked_bytes(count, uint64_t(bits_each));
+        if (!bits || *bits > left)
+            fail("section '{}' is too short for the {} entries of {} its header declares", m_what,
+                 count, book);
+        check_alloc(checked_bytes(count, entry_bytes).value_or(UINT64_MAX), m_what,
+                    fmt::format("code-book {}", book));
+    }
     void finish() {
         align();
         if (m_pos != m_in.size())
@@ -250,8 +262,9 @@ struct Logarithmic {
     }
     nlohmann::json json() const { return {{"log_lo", lo}, {"log_hi", hi}, {"bits", bits}}; }
     static Logarithmic from(const nlohmann::json& j) {
-        Logarithmic q{j.at("log_lo").get<double>(), j.at("log_hi").get<double>(),
-                      j.at("bits").get<int>()};
+        Logarithmic q{json_fields::number_at(j, "log_lo", -1e30, 1e30),
+                      json_fields::number_at(j, "log_hi", -1e30, 1e30),
+                      int(json_fields::integer_at(j, "bits", 8, 16))};
         if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
         if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
             fail("quantization range [{}, {}]", q.lo, q.hi);
@@ -269,9 +282,10 @@ void put_entries(BitWriter& w, const std::vector<IndexScale>& v, size_t target,
     w.align();
 }
 
-std::vector<IndexScale> get_entries(BitReader& r, size_t count, size_t target,
-                                    const Logarithmic& q) {
+std::vector<IndexScale> get_entries(BitReader& r, size_t count, size_t target, const Logarithmic& q,
+                                    std::string_view book) {
     const int bits = index_bits(target);
+    r.reserve(count, bits + q.bits, sizeof(IndexScale), book);
     std::vector<IndexScale> v(count);
     for (IndexScale& e : v) {
         e.index = r.get(bits);
@@ -287,8 +301,10 @@ void put_indices(BitWriter& w, const std::vector<uint32_t>& v, size_t target) {
     w.align();
 }
 
-std::vector<uint32_t> get_indices(BitReader& r, size_t count, size_t target) {
+std::vector<uint32_t> get_indices(BitReader& r, size_t count, size_t target,
+                                  std::string_view book) {
     const int bits = index_bits(target);
+    r.reserve(count, bits, sizeof(uint32_t), book);
     std::vector<uint32_t> v(count);
     for (uint32_t& x : v) x = r.get(bits);
     r.align();
@@ -355,17 +371,18 @@ void write_codebooks(const Codebooks& b, bool hdr, nlohmann::json& header,
 Codebooks read_codebooks(const Package& package) {
     const nlohmann::json& h = package.header;
     Codebooks b;
-    b.grid.n_alpha = h.at("grid").at("n_alpha").get<int>();
-    b.grid.n_beta = h.at("grid").at("n_beta").get<int>();
-    b.grid.n_theta_v = h.at("grid").at("n_theta_v").get<int>();
-    b.grid.n_phi_v = h.at("grid").at("n_phi_v").get<int>();
+    const nlohmann::json& grid = h.at("grid");
+    json_fields::only_keys(grid, "grid", {"n_alpha", "n_beta", "n_theta_v", "n_phi_v"});
+    b.grid.n_alpha = int(json_fields::integer_at(grid, "n_alpha", 2, MlvqGrid::kMaxAxis));
+    b.grid.n_beta = int(json_fields::integer_at(grid, "n_beta", 2, MlvqGrid::kMaxAxis));
+    b.grid.n_theta_v = int(json_fields::integer_at(grid, "n_theta_v", 2, MlvqGrid::kMaxAxis));
+    b.grid.n_phi_v = int(json_fields::integer_at(grid, "n_phi_v", 2, MlvqGrid::kMaxAxis));
     b.grid.validate();
     b.colour = parse_colour_model(h.at("colour").get<std::string>());
     const nlohmann::json& sizes = h.at("codebooks");
+    json_fields::only_keys(sizes, "codebooks", {"P1", "P2", "M", "P3", "P4", "C", "I1", "I2"});
     auto size = [&](const char* name) {
-        const int64_t n = sizes.at(name).get<int64_t>();
-        if (n < 0 || n > (int64_t(1) << 31)) fail("code-book {} of {} entries", name, n);
-        return size_t(n);
+        return size_t(json_fields::integer_at(sizes, name, 0, int64_t(1) << 31));
     };
     const size_t s1 = size("P1"), s2 = size("P2"), sm = size("M"), s3 = size("P3"), s4 = size("P4"),
                  sc = size("C"), si1 = size("I1"), si2 = size("I2");
@@ -379,26 +396,29 @@ Codebooks read_codebooks(const Package& package) {
     if (!s) fail("section 'codebooks' is missing");
     BitReader r(s->data, "codebooks");
     const MlvqGrid& g = b.grid;
+    r.reserve(s1 * g.n_beta, qp1.bits, sizeof(float), "P1");
     b.p1.resize(s1 * g.n_beta);
     for (float& x : b.p1) x = qp1.decode(r.get(qp1.bits));
     r.align();
-    b.p2 = get_entries(r, s2 * g.n_alpha, s1, q2);
+    b.p2 = get_entries(r, s2 * g.n_alpha, s1, q2, "P2");
+    r.reserve(sm, index_bits(s2) + index_bits(si2), sizeof(b.m[0]), "M");
     b.m.resize(sm);
     for (auto& e : b.m) {
         e[0] = r.get(index_bits(s2));
         e[1] = r.get(index_bits(si2));
     }
     r.align();
-    b.p3 = get_entries(r, s3 * g.n_theta_v, sm, q3);
-    b.p4 = get_entries(r, s4 * g.n_phi_v, s3, q4);
+    b.p3 = get_entries(r, s3 * g.n_theta_v, sm, q3, "P3");
+    b.p4 = get_entries(r, s4 * g.n_phi_v, s3, q4, "P4");
+    r.reserve(sc, 16, sizeof(b.c[0]), "C");
     b.c.resize(sc);
     for (auto& e : b.c) {
         e[0] = qc0.decode(r.get(8));
         e[1] = qc1.decode(r.get(8));
     }
     r.align();
-    b.i1 = get_indices(r, si1 * g.n_beta, sc);
-    b.i2 = get_indices(r, si2 * g.n_alpha, si1);
+    b.i1 = get_indices(r, si1 * g.n_beta, sc, "I1");
+    b.i2 = get_indices(r, si2 * g.n_alpha, si1, "I2");
     r.finish();
     b.validate("code-books");
     return b;
@@ -450,8 +470,8 @@ std::vector<IndexScale> read_texel_index(const Package& package, const nlohmann:
                                          const std::string& prefix, int width, int height,
                                          size_t size_p4) {
     const int levels = texel_index_levels(width, height);
-    if (header.at("P6_levels").get<int>() != levels)
-        fail("{} P6 levels for {}×{} texels, expected {}", header.at("P6_levels").get<int>(), width,
+    if (json_fields::integer_at(header, "P6_levels", 1, 16) != levels)
+        fail("{} P6 levels for {}×{} texels, expected {}", header.at("P6_levels").dump(), width,
              height, levels);
     const Logarithmic q = Logarithmic::from(header.at("P6"));
     const int bits = index_bits(size_p4);

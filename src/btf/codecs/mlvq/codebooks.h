@@ -45,6 +45,7 @@
 #include "btf/core/math.h"
 #include "btf/io/package.h"
 #include "btf/util/error.h"
+#include "btf/util/json_fields.h"
 
 namespace btf::mlvq {
 
@@ -131,8 +132,9 @@ struct LinearQuantizer {
     }
     nlohmann::json json() const { return {{"lo", lo}, {"hi", hi}, {"bits", bits}}; }
     static LinearQuantizer from(const nlohmann::json& j) {
-        LinearQuantizer q{j.at("lo").get<float>(), j.at("hi").get<float>(),
-                          j.at("bits").get<int>()};
+        LinearQuantizer q{float(json_fields::number_at(j, "lo", -1e30, 1e30)),
+                          float(json_fields::number_at(j, "hi", -1e30, 1e30)),
+                          int(json_fields::integer_at(j, "bits", 8, 16))};
         if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
         if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
             fail("quantization range [{}, {}]", q.lo, q.hi);

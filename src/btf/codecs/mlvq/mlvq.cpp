@@ -48,6 +48,8 @@
 #include "btf/codecs/factor/model.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/util/error.h"
+#include "btf/util/json_fields.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf {
@@ -542,20 +544,26 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
         std::vector<std::unique_ptr<MlvqMaterial>> out;
         const nlohmann::json& list = package.header.at("materials");
         if (!list.is_array() || list.empty()) fail("no materials");
+        // The package-level extent and sampling are the first material's (generic tools read
+        // them); they must not say something else.
+        for (const char* key : {"width", "height", "views", "lights"})
+            if (package.header.at(key) != list[0].at(key))
+                fail("'{}' differs from the first material's", key);
+        std::set<std::string> known = {"codebooks"};
         std::string missing;
         for (const nlohmann::json& m : list) {
             TexelIndex index;
             index.name = m.at("name").get<std::string>();
-            index.width = m.at("width").get<int>();
-            index.height = m.at("height").get<int>();
-            if (index.width < 1 || index.height < 1 || index.width > (1 << 16) ||
-                index.height > (1 << 16))
-                fail("bad extent {}×{}", index.width, index.height);
+            index.width = int(json_fields::integer_at(m, "width", 1, 1 << 16));
+            index.height = int(json_fields::integer_at(m, "height", 1, 1 << 16));
+            check_image_size(index.width, index.height, "extent");
             index.sampling.views = factor::directions_from_json(m.at("views"));
             index.sampling.lights = factor::directions_from_json(m.at("lights"));
             index.hdr = m.value("hdr", false);
             const std::string prefix = m.at("prefix").get<std::string>();
             const int levels = texel_index_levels(index.width, index.height);
+            for (int level = 0; level < levels; ++level)
+                known.insert(fmt::format("{}P6.{}", prefix, level));
             if (!package.find(fmt::format("{}P6.{}", prefix, levels - 1))) {
                 // Not yet received (a prefix of the stream).
                 if (missing.empty()) missing = fmt::format("{}P6.{}", prefix, levels - 1);
@@ -566,6 +574,8 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
             if (!decoded) decoded = std::make_shared<const DecodedBooks>(*books);
             out.push_back(std::make_unique<MlvqMaterial>(books, std::move(index), decoded));
         }
+        for (const PackageSection& s : package.sections)
+            if (!known.count(s.name)) fail("unknown section '{}'", s.name);
         if (out.empty()) fail("section '{}' is missing", missing);
         return out;
     });

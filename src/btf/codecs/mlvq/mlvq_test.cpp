@@ -250,7 +250,8 @@ TEST(Mlvq, RejectsMalformedPackages) {
     Package p = full;
     p.sections[0].data.pop_back();
     EXPECT_EQ(test::error_of([&] { mlvq_codec().open(p); }),
-              "package (mlvq): section 'codebooks' is too short");
+              "package (mlvq): section 'codebooks' is too short for the 77 entries of I2 its "
+              "header declares");
     p = full;
     p.header["codebooks"]["P4"] = 0;
     EXPECT_NE(test::error_of([&] { mlvq_codec().open(p); }).find("package (mlvq): "),

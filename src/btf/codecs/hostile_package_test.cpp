@@ -1,0 +1,182 @@
+// Crafted package headers and sections against every codec's open(): each must be refused with a
+// one-line btf::Error naming what is wrong, before anything is allocated for it, and never turn
+// into NaN values, a silently narrowed integer or an ignored field. The cases are those a
+// structure-aware fuzzing run found accepted (docs/reliability.md).
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <map>
+
+#include "btf/codecs/codec.h"
+#include "btf/synth/synth.h"
+#include "btf/testing/sources.h"
+#include "btf/testing/support.h"
+#include "btf/util/limits.h"
+
+namespace btf {
+namespace {
+
+using test::error_of;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+
+const BtfSource& leather() {
+    static const std::unique_ptr<FunctionSource> source =
+        test::cached(*synth::make("leather", 16, test::ubo_subset(6, 8), 5));
+    return *source;
+}
+
+const Package& encoded(const std::string& codec) {
+    static std::map<std::string, Package> cache;
+    auto it = cache.find(codec);
+    if (it != cache.end()) return it->second;
+    Params params;
+    if (codec == "fmf") params = Params({{"components", "3"}});
+    if (codec == "mlvq")
+        params = Params({{"n-alpha", "7"}, {"n-beta", "7"}, {"n-theta-v", "4"}, {"n-phi-v", "6"}});
+    return cache[codec] = find_codec(codec).encode(leather(), params);
+}
+
+// The package after `edit`, written to bytes and read back (checksums recomputed: the edit
+// reaches the codec, as a crafted file would), then opened.
+std::string open_error(const std::string& codec, const std::function<void(Package&)>& edit) {
+    Package p = encoded(codec);
+    edit(p);
+    const std::vector<uint8_t> bytes = encode_package(p, {0});
+    test::TempFolder temp;
+    const std::filesystem::path file = temp.path() / "crafted.btfpkg";
+    test::write_file(file, std::string(bytes.begin(), bytes.end()));
+    return error_of([&] { open_material(file); });
+}
+
+PackageSection& section(Package& p, const std::string& name) {
+    for (PackageSection& s : p.sections)
+        if (s.name == name) return s;
+    ADD_FAILURE() << "no section " << name;
+    return p.sections.front();
+}
+
+TEST(HostilePackage, TheUneditedPackagesOpen) {
+    for (const char* codec : {"fmf", "mlvq"}) {
+        Package p = encoded(codec);
+        const std::vector<uint8_t> bytes = encode_package(p, {0});
+        const auto material = open_material(decode_package(bytes, "plain.btfpkg"));
+        const Rgb v =
+            material->eval({0.3, 0.6}, Direction{0.3, 1.0}.vector(), Direction{0.2, 2.0}.vector());
+        EXPECT_TRUE(std::isfinite(v.r) && std::isfinite(v.g) && std::isfinite(v.b)) << codec;
+    }
+}
+
+TEST(HostilePackage, NonFiniteFactorsAreRefusedWhenOpened) {
+    // An f16 NaN (0x7e00) as the first value of the first component: it used to evaluate to NaN.
+    for (const uint16_t bits : {uint16_t(0x7e00), uint16_t(0x7c00)}) {
+        const std::string e = open_error("fmf", [&](Package& p) {
+            PackageSection& s = section(p, "b0.k0");
+            std::memcpy(s.data.data(), &bits, 2);
+        });
+        EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("not a finite number")));
+    }
+}
+
+TEST(HostilePackage, HeaderIntegersMustBeExactAndInRange) {
+    const nlohmann::json huge = uint64_t(1) << 40, half = 1.5;
+    struct Case {
+        const char* field;
+        std::function<void(nlohmann::json&, const nlohmann::json&)> set;
+    };
+    const std::vector<Case> cases = {
+        {"groups",
+         [](nlohmann::json& h, const nlohmann::json& v) { h["model"]["groups"][0][0] = v; }},
+        {"plane",
+         [](nlohmann::json& h, const nlohmann::json& v) { h["model"]["blocks"][0]["plane"] = v; }},
+        {"cluster", [](nlohmann::json& h,
+                       const nlohmann::json& v) { h["model"]["blocks"][0]["cluster"] = v; }},
+        {"clusters",
+         [](nlohmann::json& h, const nlohmann::json& v) { h["model"]["clusters"] = v; }},
+        {"levels", [](nlohmann::json& h, const nlohmann::json& v) { h["model"]["levels"] = v; }},
+        {"width", [](nlohmann::json& h, const nlohmann::json& v) { h["width"] = v; }},
+    };
+    for (const Case& c : cases)
+        for (const nlohmann::json& value : {huge, half}) {
+            const std::string e = open_error("fmf", [&](Package& p) { c.set(p.header, value); });
+            EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr(c.field),
+                                 HasSubstr("must be an integer")))
+                << c.field << " = " << value.dump();
+        }
+    for (const nlohmann::json& value : {huge, half}) {
+        const std::string e =
+            open_error("mlvq", [&](Package& p) { p.header["grid"]["n_alpha"] = value; });
+        EXPECT_THAT(e, AllOf(HasSubstr("n_alpha"), HasSubstr("must be an integer"))) << value;
+    }
+}
+
+TEST(HostilePackage, MlvqExtentMustBeStatedAndAgree) {
+    for (const nlohmann::json& value : {nlohmann::json(0), nlohmann::json(-1), nlohmann::json()}) {
+        const std::string e = open_error("mlvq", [&](Package& p) { p.header["width"] = value; });
+        EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("'width'"))) << value;
+        const std::string e2 =
+            open_error("mlvq", [&](Package& p) { p.header["materials"][0]["width"] = value; });
+        EXPECT_THAT(e2, HasSubstr("width")) << value;
+    }
+    const std::string e = open_error("mlvq", [](Package& p) {
+        p.header["views"]["theta"].erase(p.header["views"]["theta"].size() - 1);
+    });
+    EXPECT_THAT(e, HasSubstr("views"));
+}
+
+TEST(HostilePackage, CodeBookSizesAreCheckedAgainstTheSectionBeforeAllocating) {
+    const std::string e =
+        open_error("mlvq", [](Package& p) { p.header["codebooks"]["P1"] = int64_t(1) << 31; });
+    EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("P1"), HasSubstr("too short")));
+}
+
+TEST(HostilePackage, UndeclaredSectionsAndTrailingBytesAreRefused) {
+    for (const char* codec : {"fmf", "mlvq"}) {
+        const std::string e = open_error(codec, [](Package& p) {
+            PackageSection extra;
+            extra.name = "extra";
+            extra.data = {1, 2, 3};
+            p.sections.push_back(extra);
+            ++p.declared_sections;
+        });
+        EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("unknown section 'extra'")))
+            << codec;
+    }
+    const std::string e =
+        open_error("fmf", [](Package& p) { section(p, "tables").data.push_back(0); });
+    EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("section 'tables'")));
+}
+
+TEST(HostilePackage, DirectionsMustLieOnTheHemisphere) {
+    const std::string theta =
+        open_error("fmf", [](Package& p) { p.header["views"]["theta"][1] = -2147483648.0; });
+    EXPECT_THAT(theta, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("'theta' must be a number")));
+    const std::string phi =
+        open_error("fmf", [](Package& p) { p.header["lights"]["phi"][2] = 65537.0; });
+    EXPECT_THAT(phi, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("'phi' must be a number")));
+}
+
+TEST(HostilePackage, DeclaredExtentsAndSectionsRespectTheLimits) {
+    const Limits saved = limits();
+    Limits small = saved;
+    small.image_pixels = 100;  // the 16² test material has 256 texels
+    set_limits(small);
+    const std::string e = open_error("fmf", [](Package&) {});
+    Limits tiny_alloc = saved;
+    tiny_alloc.alloc_bytes = 64;
+    set_limits(tiny_alloc);
+    const std::string e2 = open_error("fmf", [](Package&) {});
+    set_limits(saved);
+    EXPECT_THAT(
+        e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("16×16"),
+                 HasSubstr("exceeds the limit of 100 texels"), HasSubstr("--max-image-pixels")));
+    EXPECT_THAT(e2, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("over the limit of 64 B"),
+                          HasSubstr("--max-alloc")));
+}
+
+}  // namespace
+}  // namespace btf
