@@ -1,6 +1,7 @@
 // End-to-end tests of the `btf` command: what a user types, what they get back.
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,6 +20,7 @@
 #include "btf/io/open.h"
 #include "btf/io/package.h"
 #include "btf/testing/cli.h"
+#include "btf/testing/support.h"
 
 namespace btf {
 namespace {
@@ -83,17 +85,58 @@ TEST_F(BtfCli, BadInputGivesOneLineAndNonZeroExit) {
     EXPECT_NE(r.output.find("no such direction-set file"), std::string::npos) << r.output;
 }
 
+// Runs `btf ARGS` in the background (stderr to `log`), waits until `ready` (a shell condition)
+// holds, then stops it, sends `signals` (TERM, INT, …) and lets it go on: the process cannot have
+// finished before the signals arrive, however fast or busy the machine. Returns its exit status;
+// 120 s without readiness is a hang guard, not a timing assertion.
+int interrupted(const std::string& args, const fs::path& log, const std::string& ready,
+                const std::vector<std::string>& signals) {
+    std::string kills;
+    for (const std::string& s : signals) kills += "kill -" + s + " $pid; ";
+    const std::string script = fmt::format(
+        "{} {} 2> '{}' & pid=$!; i=0; "
+        "until {}; do sleep 0.05; i=$((i+1)); if [ $i -gt 2400 ]; then break; fi; done; "
+        "kill -STOP $pid; {}kill -CONT $pid; wait $pid",
+        BTF_TOOL_PATH, args, log.string(), ready, kills);
+    const int status = std::system(script.c_str());  // /bin/sh -c SCRIPT
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 TEST_F(BtfCli, InterruptedRunLeavesNoFiles) {
-    // SIGTERM during a long write: the run unwinds, removes its temporary file and exits 130.
+    // SIGTERM while the output is being written (its temporary file exists): the run unwinds,
+    // removes the temporary and exits 130.
     const fs::path dir = s_dir / "interrupt";
     fs::create_directories(dir);
-    const std::string command =
-        "sh -c '" + std::string(BTF_TOOL_PATH) + " --quiet synth --preset leather --size 256 -o " +
-        (dir / "big.h5").string() + " & pid=$!; sleep 1.5; kill -TERM $pid; wait $pid; exit $?'";
-    const int status = std::system(command.c_str());
-    ASSERT_TRUE(WIFEXITED(status));
-    EXPECT_EQ(WEXITSTATUS(status), 130);
+    const int code =
+        interrupted("--quiet synth --preset leather --size 256 -o " + (dir / "big.h5").string(),
+                    s_dir / "interrupt.log", "ls -A " + dir.string() + " | grep -q tmp", {"TERM"});
+    EXPECT_EQ(code, 130);
     EXPECT_TRUE(fs::is_empty(dir)) << "left behind: " << fs::directory_iterator(dir)->path();
+}
+
+TEST_F(BtfCli, InterruptedCompressionLeavesNoFilesAndKeepsTheOldOutput) {
+    // SIGINT while compress reads its source (its progress says so), and SIGINT then SIGTERM (the
+    // second signal ends the process at once, through the watchdog): both
+    // stop the run with 130, and the package that was there before is untouched.
+    const fs::path dir = s_dir / "interrupt_compress";
+    fs::create_directories(dir);
+    const std::string source = (dir / "src.h5").string();
+    ASSERT_EQ(run("synth --preset woven_fabric --size 64 -o " + source).code, 0);
+    const fs::path out = dir / "out.btfpkg";
+    test::write_file(out, "what the user had");
+    for (const std::vector<std::string>& signals :
+         {std::vector<std::string>{"INT"}, std::vector<std::string>{"INT", "TERM"}}) {
+        const fs::path log = s_dir / "compress.log";
+        const int code = interrupted(
+            "compress " + source + " -o " + out.string() + " --codec fmf -p components=8", log,
+            "grep -q . '" + log.string() + "'", signals);
+        EXPECT_EQ(code, 130) << test::read_file(log);
+        EXPECT_EQ(test::read_file(out), "what the user had");
+        std::vector<std::string> left;
+        for (const auto& entry : fs::directory_iterator(dir))
+            left.push_back(entry.path().filename());
+        EXPECT_EQ(left.size(), 2u) << fmt::format("{}", fmt::join(left, ", "));
+    }
 }
 
 TEST_F(BtfCli, SynthInfoSliceConvertRoundTrip) {

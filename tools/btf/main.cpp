@@ -1,21 +1,53 @@
 // btf — the btfkit command. Thin by design: parse arguments, call the library, print.
 
+#include <poll.h>
+#include <unistd.h>
+
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 #include "cli.h"
 
 namespace {
-// First SIGINT/SIGTERM: cancel the running operation, which unwinds and removes its temporary
-// output. A second one ends the process at once.
-extern "C" void on_signal(int signal) {
+// SIGINT/SIGTERM cancel the running operation, which unwinds and removes its temporary output.
+// The handler only sets the flag and wakes the watchdog thread (both async-signal-safe); the
+// watchdog guarantees the promise of docs/reliability.md whatever the operation is doing: if the
+// process has not ended within kCancelGraceMs of the first signal (a library call that does not
+// look at the flag), or at a second signal, it removes every temporary output and exits 130.
+constexpr int kCancelGraceMs = 800;
+int g_signal_pipe[2] = {-1, -1};
+
+extern "C" void on_signal(int) {
     btf::Progress::cancel_all();
-    std::signal(signal, SIG_DFL);
+    const char byte = 1;
+    [[maybe_unused]] const ssize_t n = ::write(g_signal_pipe[1], &byte, 1);
+}
+
+void watchdog() {
+    char byte;
+    while (::read(g_signal_pipe[0], &byte, 1) != 1) {
+    }
+    pollfd second{g_signal_pipe[0], POLLIN, 0};
+    ::poll(&second, 1, kCancelGraceMs);
+    btf::AtomicOutput::remove_all_temporaries();
+    static const char message[] = "btf: cancelled\n";
+    [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, message, sizeof message - 1);
+    ::_exit(130);
+}
+
+void install_signal_handlers() {
+    if (::pipe(g_signal_pipe) != 0) return;  // no watchdog: cancellation stays cooperative
+    std::thread(watchdog).detach();
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
 }
 
 // The arguments as a shell would take them back, single-quoted where needed; the program by its
@@ -43,8 +75,7 @@ std::string shell_command_line(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
+    install_signal_handlers();
     using namespace btf::cli;
     CLI::App app{
         "btf: measured material appearance (Bidirectional Texture Functions) from disk "
@@ -57,6 +88,19 @@ int main(int argc, char** argv) {
     app.add_option("--threads", global.threads, "worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     app.add_flag("-q,--quiet", global.quiet, "no progress output");
+    int64_t max_image_pixels = 0;
+    std::string max_alloc;
+    app.add_option("--max-image-pixels", max_image_pixels,
+                   "largest image (width x height texels) an input may hold or declare (default "
+                   "67108864 = 8192x8192, or $BTF_MAX_IMAGE_PIXELS)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--max-alloc", max_alloc,
+                   "largest single allocation for what an input declares, e.g. 8G or 512M "
+                   "(default 4G, or $BTF_MAX_ALLOC)");
+    bool allow_hdf5_external = false;
+    app.add_flag("--allow-hdf5-external", allow_hdf5_external,
+                 "let HDF5 inputs read other files (external links, external storage, virtual "
+                 "datasets; or $BTF_ALLOW_HDF5_EXTERNAL=1)");
 
     const std::vector<Command> commands = {
         register_info(app, global),       register_convert(app, global),
@@ -72,6 +116,16 @@ int main(int argc, char** argv) {
 
     try {
         app.parse(argc, argv);
+        btf::Limits limits = btf::limits();
+        if (max_image_pixels > 0) limits.image_pixels = max_image_pixels;
+        if (!max_alloc.empty()) {
+            const auto bytes = btf::parse_limit_bytes(max_alloc);
+            if (!bytes)
+                btf::fail("--max-alloc {}: expected a byte count such as 8G or 512M", max_alloc);
+            limits.alloc_bytes = *bytes;
+        }
+        if (allow_hdf5_external) limits.allow_hdf5_external = true;
+        btf::set_limits(limits);
         btf::ThreadLimit limit(global.threads);
         for (const Command& command : commands)
             if (command.parser->parsed()) command.run();
