@@ -22,7 +22,7 @@ namespace {
 // watchdog guarantees the promise of docs/reliability.md whatever the operation is doing: if the
 // process has not ended within kCancelGraceMs of the first signal (a library call that does not
 // look at the flag), or at a second signal, it removes every temporary output and exits 130.
-constexpr int kCancelGraceMs = 800;
+constexpr int kCancelGraceMs = 500;
 int g_signal_pipe[2] = {-1, -1};
 
 extern "C" void on_signal(int) {
