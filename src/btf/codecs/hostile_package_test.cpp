@@ -134,6 +134,21 @@ TEST(HostilePackage, CodeBookSizesAreCheckedAgainstTheSectionBeforeAllocating) {
     EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("P1"), HasSubstr("too short")));
 }
 
+TEST(HostilePackage, AnMlvqExtentLargerThanItsIndexSectionsIsRefusedBeforeAllocating) {
+    // 20000 × 12 texels (two index levels) claimed by the index of a 16² material.
+    const std::string e = open_error("mlvq", [](Package& p) {
+        for (nlohmann::json* h : {&p.header, &p.header["materials"][0]}) {
+            (*h)["width"] = 20000;
+            (*h)["height"] = 12;
+        }
+        p.header["materials"][0]["P6_levels"] = 2;
+        std::erase_if(p.sections, [](const PackageSection& s) { return s.name == "P6.2"; });
+        --p.declared_sections;
+    });
+    EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("section 'P6.1'"),
+                         HasSubstr("too few for the 60000 texels of its level")));
+}
+
 TEST(HostilePackage, UndeclaredSectionsAndTrailingBytesAreRefused) {
     for (const char* codec : {"fmf", "mlvq"}) {
         const std::string e = open_error(codec, [](Package& p) {

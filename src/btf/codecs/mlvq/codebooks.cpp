@@ -475,6 +475,16 @@ std::vector<IndexScale> read_texel_index(const Package& package, const nlohmann:
              height, levels);
     const Logarithmic q = Logarithmic::from(header.at("P6"));
     const int bits = index_bits(size_p4);
+    // The coarsest level (every 2^(levels−1)-th texel in both directions) must be present and hold
+    // its entries before the whole index is allocated: a tiny file cannot claim a huge extent.
+    if (const PackageSection* coarsest = package.find(fmt::format("{}P6.{}", prefix, levels - 1))) {
+        const uint64_t step = uint64_t(1) << (levels - 1);
+        const uint64_t entries =
+            ((uint64_t(width) + step - 1) / step) * ((uint64_t(height) + step - 1) / step);
+        if (coarsest->data.size() * 8 < entries * uint64_t(bits + q.bits))
+            fail("section '{}' holds {} bytes, too few for the {} texels of its level",
+                 coarsest->name, coarsest->data.size(), entries);
+    }
     std::vector<IndexScale> p6(size_t(width) * height);
     int finest = levels;  // the finest level present
     for (int level = levels - 1; level >= 0; --level) {
