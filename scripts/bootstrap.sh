@@ -8,7 +8,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config clang-format git
   libeigen3-dev libopenblas-dev liblapacke-dev
-  libopenimageio-dev libimath-dev
+  libopenimageio-dev libimath-dev libjpeg-dev
   libzip-dev zip
   libhdf5-dev
   libqhull-dev

@@ -3,6 +3,12 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+// jpeglib.h needs FILE and size_t declared before it.
+#include <jpeglib.h>
+#include <csetjmp>
+#include <cstddef>
+#include <cstdio>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -36,6 +42,82 @@ Rgb Image::bilinear(double x, double y) const {
 }
 
 namespace {
+
+// ---- JPEG frame headers ------------------------------------------------------------------------
+// OpenImageIO's JPEG reader starts libjpeg's decompressor when it opens a file, and for a
+// progressive JPEG that allocates coefficient buffers for the whole image: a crafted SOF claiming
+// 65500² asks for tens of GB before OpenImageIO's own size check runs. So the size a JPEG declares
+// is read first with libjpeg's header parser alone (jpeg_read_header allocates nothing that grows
+// with the image), and checked against btfkit's limit.
+
+struct JpegErrors {
+    jpeg_error_mgr manager;
+    std::jmp_buf jump;
+};
+
+extern "C" void jpeg_error_jump(j_common_ptr info) {
+    std::longjmp(reinterpret_cast<JpegErrors*>(info->err)->jump, 1);
+}
+extern "C" void jpeg_quiet(j_common_ptr, int) {}
+
+bool is_jpeg(const unsigned char* data, size_t size) {
+    return size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF;
+}
+
+// The declared width and height, or nothing when the header cannot be read (a prefix too short to
+// reach the frame header, or damage OpenImageIO will report in its own words). Only plain C data
+// lives between setjmp and longjmp.
+std::optional<std::pair<int64_t, int64_t>> jpeg_declared_size(const unsigned char* data,
+                                                              size_t size, std::FILE* file) {
+    jpeg_decompress_struct info;
+    JpegErrors errors;
+    info.err = jpeg_std_error(&errors.manager);
+    errors.manager.error_exit = jpeg_error_jump;
+    errors.manager.emit_message = jpeg_quiet;
+    if (setjmp(errors.jump)) {
+        jpeg_destroy_decompress(&info);
+        return std::nullopt;
+    }
+    jpeg_create_decompress(&info);
+    if (file)
+        jpeg_stdio_src(&info, file);
+    else
+        jpeg_mem_src(&info, data, static_cast<unsigned long>(size));
+    const bool ok = jpeg_read_header(&info, TRUE) == JPEG_HEADER_OK;
+    const std::pair<int64_t, int64_t> declared{info.image_width, info.image_height};
+    jpeg_destroy_decompress(&info);
+    if (!ok) return std::nullopt;
+    return declared;
+}
+
+void check_jpeg_memory(const void* data, size_t size, const std::string& name) {
+    const auto* bytes = static_cast<const unsigned char*>(data);
+    if (!is_jpeg(bytes, size)) return;
+    if (const auto declared = jpeg_declared_size(bytes, size, nullptr))
+        check_image_size(declared->first, declared->second, name);
+}
+
+void check_jpeg_file(const std::filesystem::path& path) {
+    std::FILE* file = std::fopen(path.c_str(), "rb");
+    if (!file) return;  // OpenImageIO says why
+    unsigned char magic[3] = {};
+    std::optional<std::pair<int64_t, int64_t>> declared;
+    if (std::fread(magic, 1, 3, file) == 3 && is_jpeg(magic, 3)) {
+        std::rewind(file);
+        declared = jpeg_declared_size(nullptr, 0, file);
+    }
+    std::fclose(file);
+    if (declared) check_image_size(declared->first, declared->second, path.string());
+}
+
+// OpenImageIO's own check of a header's size, which its readers apply when a file is opened —
+// before a progressive JPEG's decoder allocates coefficient buffers for the whole image (a crafted
+// SOF of 65500² asks libjpeg for tens of GB right there). Set from btfkit's limit before every
+// open, since the limit may change: the largest image, with four channels of 32-bit floats.
+void apply_decoder_limits() {
+    const int64_t mb = std::max<int64_t>(1, (limits().image_pixels * 16) >> 20);
+    OIIO::attribute("limits:imagesize_MB", int(std::min<int64_t>(mb, INT32_MAX)));
+}
 
 // sRGB → linear for every 8-bit code value: a table instead of a pow() per value.
 const std::array<float, 256>& srgb_table() {
@@ -122,6 +204,8 @@ Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encod
 Image read_image(const std::filesystem::path& path, Encoding encoding) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec)) fail("{}: no such image file", path.string());
+    apply_decoder_limits();
+    check_jpeg_file(path);
     auto input = OIIO::ImageInput::open(path.string());
     if (!input) {
         std::string err = OIIO::geterror();
@@ -133,6 +217,8 @@ Image read_image(const std::filesystem::path& path, Encoding encoding) {
 Image read_image_memory(const void* data, size_t size, const std::string& name, Encoding encoding) {
     OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
     // Passing the proxy directly (not as an "oiio:ioproxy" attribute) opens the stream once.
+    apply_decoder_limits();
+    check_jpeg_memory(data, size, name);
     auto input = OIIO::ImageInput::open(name, nullptr, &reader);
     if (!input) {
         std::string err = OIIO::geterror();
@@ -145,6 +231,8 @@ std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size
                                                           const std::string& name,
                                                           std::string* error) {
     OIIO::Filesystem::IOMemReader reader(const_cast<void*>(data), size);
+    apply_decoder_limits();
+    check_jpeg_memory(data, size, name);
     auto input = OIIO::ImageInput::open(name, nullptr, &reader);
     if (!input) {
         if (error) *error = OIIO::geterror();

@@ -2,6 +2,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <zip.h>
 
@@ -579,6 +581,47 @@ TEST(Ubo2003Hostile, ImagesOverTheLimitAreRefusedBeforeDecoding) {
     const auto source = ubo2003::open(temp.path() / "huge16384.zip");
     set_limits(saved);
     EXPECT_EQ(source->width(), 16384);
+}
+
+TEST(Ubo2003Hostile, ProgressiveJpegsOverTheLimitAreRefusedBeforeTheDecoderAllocates) {
+    // The measured view's JPEGs are progressive: OpenImageIO starts libjpeg's decompressor when it
+    // opens one, which allocates coefficient buffers for the whole image, so a SOF claiming 65500²
+    // took tens of GB (the OOM killer ended `btf info`). The size is now read from the header
+    // alone and refused. Run in a child process under a 3 GB address-space cap, so that a
+    // regression fails this test instead of exhausting the machine.
+    if (!fs::is_directory(kRealView))
+        GTEST_SKIP() << "real UBO2003 view not found at " << kRealView;
+    TempFolder temp;
+    FileMap files;
+    for (const auto& entry : fs::directory_iterator(kRealView))
+        files["tv000_pv000/" + entry.path().filename().string()] =
+            with_declared_size(read_bytes(entry.path()), 65500, 65500);
+    const fs::path archive = temp.path() / "progressive.zip";
+    write_zip(archive, files);
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        const rlimit cap{rlim_t(3) << 30, rlim_t(3) << 30};
+        ::setrlimit(RLIMIT_AS, &cap);
+        int code = 3;
+        try {
+            ubo2003::open(archive);
+            code = 1;
+        } catch (const Error& e) {
+            code = std::string(e.what()).find("65500×65500 texels exceeds the limit") !=
+                           std::string::npos
+                       ? 0
+                       : 2;
+        } catch (...) {
+            code = 4;
+        }
+        ::_exit(code);
+    }
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status)) << "the child died of signal " << WTERMSIG(status);
+    EXPECT_EQ(WEXITSTATUS(status), 0)
+        << "1: opened, 2: another error, 3 or 4: out of memory or another exception";
 }
 
 TEST(Ubo2003Hostile, AnEntryLargerThanItsImageCouldBeIsRefused) {
