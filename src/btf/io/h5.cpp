@@ -4,6 +4,7 @@
 #include <libdeflate.h>
 
 #if defined(__x86_64__)
+#include <cpuid.h>
 #include <immintrin.h>
 #endif
 
@@ -465,7 +466,12 @@ __attribute__((target("avx,f16c"))) void from_half_f16c(const uint16_t* in, floa
     for (; i < n; ++i) out[i] = float(Eigen::numext::bit_cast<Eigen::half>(in[i]));
 }
 bool have_f16c() {
-    static const bool have = __builtin_cpu_supports("avx") && __builtin_cpu_supports("f16c");
+    // F16C from CPUID directly: clang's __builtin_cpu_supports does not know "f16c".
+    static const bool have = [] {
+        unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+        return __builtin_cpu_supports("avx") && __get_cpuid(1, &eax, &ebx, &ecx, &edx) &&
+               (ecx & bit_F16C) != 0;
+    }();
     return have;
 }
 #endif
