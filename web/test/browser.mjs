@@ -7,6 +7,13 @@ import { chromium } from "playwright-core";
 
 export const CHROMIUM = process.env.CHROMIUM ?? "/usr/bin/chromium";
 
+/**
+ * How long a test waits for the page (or a server) before calling it hung, in ms. Only a guard
+ * against hangs, so generous: a loaded machine may run many times slower. No test asserts on how
+ * long anything takes; they wait for bytes, counts and states.
+ */
+export const PATIENCE_MS = 180000;
+
 export async function launchBrowser() {
   if (!existsSync(CHROMIUM)) throw new Error(`${CHROMIUM} is missing: apt-get install -y chromium (or set CHROMIUM)`);
   return chromium.launch({
@@ -18,6 +25,8 @@ export async function launchBrowser() {
 /** Opens `${base}index.html?${query}`; `problems` collects uncaught page errors. */
 export async function openPage(browser, base, query, { init } = {}) {
   const page = await browser.newPage();
+  page.setDefaultTimeout(PATIENCE_MS);
+  page.setDefaultNavigationTimeout(PATIENCE_MS);
   const problems = [];
   page.on("pageerror", (e) => problems.push(e.message));
   if (init) await page.addInitScript(init);

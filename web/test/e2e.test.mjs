@@ -8,7 +8,7 @@ import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
 import { mkdirSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { freePort, launchBrowser, meanDiff, openPage as open, pixels, render, state } from "./browser.mjs";
+import { PATIENCE_MS, freePort, launchBrowser, meanDiff, openPage as open, pixels, render, state } from "./browser.mjs";
 import { ARTIFACTS, listEntry, makeFixtures, makeSite } from "./fixtures.mjs";
 import { startServer } from "./server.mjs";
 
@@ -82,7 +82,7 @@ test("the page draws before the stream completes and refines with each component
   server.hold("woven_fabric", components.slice(0, -1).map((s) => s.offset + s.size));
   const { page, problems } = await openPage("material=woven_fabric&size=160x160&deterministic=1&mip=0&hud=0");
   try {
-    await page.waitForFunction(() => window.btfViewer.state.components === 1 && window.btfViewer.state.ready && window.btfViewer.state.frames > 0, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.components === 1 && window.btfViewer.state.ready && window.btfViewer.state.frames > 0, null, { timeout: PATIENCE_MS });
     const first = await state(page);
     assert.equal(first.done, false, "the stream must still be running");
     assert.ok(first.bytes < first.total, `${first.bytes} of ${first.total} bytes`);
@@ -91,14 +91,14 @@ test("the page draws before the stream completes and refines with each component
     for (let k = 1; k <= 8; ++k) {
       if (k > 1) {
         server.release("woven_fabric");
-        await page.waitForFunction((n) => window.btfViewer.state.components === n, k, { timeout: 30000 });
+        await page.waitForFunction((n) => window.btfViewer.state.components === n, k, { timeout: PATIENCE_MS });
       }
       const r = await render(page);
       assert.equal(r.components, k);
       frames.push(await pixels(page));
       await page.locator("canvas").screenshot({ path: path.join(SHOTS, `progressive-${k}-of-8.png`) });
     }
-    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
     const final = await state(page);
     assert.equal(final.bytes, final.total);
     assert.deepEqual(final.materials[0].applied, components.map((s) => s.name));
@@ -124,16 +124,16 @@ test("the animated page keeps drawing while components arrive, and its HUD says 
   server.hold("woven_fabric", components.slice(0, -1).map((s) => s.offset + s.size));
   const { page, problems } = await openPage("material=woven_fabric&size=120x120");
   try {
-    await page.waitForFunction(() => window.btfViewer.state.components === 1 && window.btfViewer.state.frames > 0, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.components === 1 && window.btfViewer.state.frames > 0, null, { timeout: PATIENCE_MS });
     // The frame loop runs on while the stream waits: frames are drawn between two components.
     const f0 = (await state(page)).frames;
-    await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 3, f0, { timeout: 30000 });
+    await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 3, f0, { timeout: PATIENCE_MS });
     assert.equal((await state(page)).components, 1);
     assert.match(await page.locator("#hud").innerText(), /woven_fabric: [\d.]+ KiB \/ 322\.5 KiB · 1\/8 components · http · refining/);
     server.releaseAll("woven_fabric");
-    await page.waitForFunction(() => window.btfViewer.state.complete && window.btfViewer.state.components === 8, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.complete && window.btfViewer.state.components === 8, null, { timeout: PATIENCE_MS });
     const f1 = (await state(page)).frames;
-    await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 2, f1, { timeout: 30000 });
+    await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 2, f1, { timeout: PATIENCE_MS });
     const hud = await page.locator("#hud").innerText();
     assert.match(hud, /woven_fabric: 322\.5 KiB \/ 322\.5 KiB · 8\/8 components · http · complete/);
     assert.match(hud, /frame [\d.]+ ms \(\d+ fps\) · submit [\d.]+ ms/);
@@ -148,7 +148,7 @@ test("the animated page keeps drawing while components arrive, and its HUD says 
 test("the WebSocket stream renders the same frame, and a cut socket resumes over HTTP with Range", async () => {
   const query = "material=woven_fabric&size=160x160&deterministic=1&mip=0&hud=0";
   const frameOf = async (page) => {
-    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
     await render(page);
     return pixels(page);
   };
@@ -170,8 +170,7 @@ test("the WebSocket stream renders the same frame, and a cut socket resumes over
   // A server whose socket breaks off after 100000 bytes: the rest comes by a Range request.
   const cut = await startServer(site, { cutWebSocketAt: 100000 });
   try {
-    const page = await browser.newPage();
-    await page.goto(`${cut.url}index.html?${query}&api=api/materials-ws`);
+    const { page } = await open(browser, cut.url, `${query}&api=api/materials-ws`);
     const frame = await frameOf(page);
     assert.equal(meanDiff(frame, reference), 0);
     const ranges = cut.requests.filter((r) => r.path === "/materials/woven_fabric.btfpkg").map((r) => r.range);
@@ -192,7 +191,7 @@ test("colour variants, log, quantizations, the environment and several objects m
   for (const c of cases) {
     const { page, problems } = await openPage(`${c.query}&size=200x160&deterministic=1&mip=0&hud=0`);
     try {
-      await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 30000 });
+      await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
       await render(page);
       const frame = await pixels(page);
       await page.locator("canvas").screenshot({ path: path.join(SHOTS, `${c.name}.png`) });
@@ -209,7 +208,7 @@ test("colour variants, log, quantizations, the environment and several objects m
 test("mip-mapping changes only minified regions", async () => {
   const { page } = await openPage("material=woven_fabric&size=160x160&deterministic=1&hud=0&uvscale=4");
   try {
-    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 30000 });
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
     await render(page);
     const mipped = await pixels(page);
     await page.locator("canvas").screenshot({ path: path.join(SHOTS, "mip-on.png") });
@@ -229,7 +228,7 @@ test("mip-mapping changes only minified regions", async () => {
 async function messageOf(query, options) {
   const { page } = await openPage(query, options);
   try {
-    await page.waitForFunction(() => !document.getElementById("message").hidden, null, { timeout: 30000 });
+    await page.waitForFunction(() => !document.getElementById("message").hidden, null, { timeout: PATIENCE_MS });
     return await page.locator("#message").innerText();
   } finally {
     await page.close();
@@ -244,7 +243,7 @@ test("the page says clearly what went wrong", async () => {
   // A package damaged in its third component section: the error, and the first two components
   // still on screen.
   const broken = await openPage("material=woven_broken&size=96x96&deterministic=1&hud=0");
-  await broken.page.waitForFunction(() => !document.getElementById("message").hidden, null, { timeout: 30000 });
+  await broken.page.waitForFunction(() => !document.getElementById("message").hidden, null, { timeout: PATIENCE_MS });
   assert.match(await broken.page.locator("#message").innerText(), /Material failed to load: woven_broken: checksum mismatch in section 'b0\.k2'/);
   const s = await state(broken.page);
   assert.equal(s.components, 2);

@@ -12,16 +12,36 @@ export const REPO = path.resolve(WEB, "..");
 export const ARTIFACTS = path.join(WEB, "test-artifacts");
 export const FIXTURES = path.join(ARTIFACTS, "fixtures");
 
-export const run = (cmd, args, opts = {}) => execFileSync(cmd, args, { stdio: ["ignore", "pipe", "pipe"], ...opts }).toString();
+/** Runs a program; returns its stdout as text ("" when stdout is not piped, as with "inherit"). */
+export const run = (cmd, args, opts = {}) => {
+  const out = execFileSync(cmd, args, { stdio: ["ignore", "pipe", "pipe"], ...opts });
+  return out === null ? "" : out.toString();
+};
 
-/** The btf binary, building it when needed. */
-export function btfBinary() {
-  if (process.env.BTF_BIN) return process.env.BTF_BIN;
-  const bin = path.join(REPO, "build/web/btf");
+/**
+ * The btf binary: $BTF_BIN, else build/web/btf of the checkout, configured and built with the
+ * documented cmake and ninja commands when missing (their output on stderr, where the test runner
+ * shows it). `env` and `repo` are for the test of this first run.
+ */
+export function btfBinary({ env = process.env, repo = REPO } = {}) {
+  if (env.BTF_BIN) return env.BTF_BIN;
+  const dir = path.join(repo, "build/web");
+  const bin = path.join(dir, "btf");
   if (!existsSync(bin)) {
-    console.log("# building build/web/btf (first run only)");
-    run("cmake", ["-S", REPO, "-B", path.join(REPO, "build/web"), "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release", "-DBTF_BUILD_BENCH=OFF", "-DBTF_BUILD_TESTS=OFF"], { stdio: "inherit" });
-    run("ninja", ["-C", path.join(REPO, "build/web"), "btf"], { stdio: "inherit" });
+    console.error("# building build/web/btf (first run only)");
+    const steps = [
+      ["cmake", ["-S", repo, "-B", dir, "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release", "-DBTF_BUILD_BENCH=OFF", "-DBTF_BUILD_TESTS=OFF"]],
+      ["ninja", ["-C", dir, "btf"]],
+    ];
+    for (const [cmd, args] of steps) {
+      try {
+        run(cmd, args, { stdio: ["ignore", 2, 2], env });
+      } catch (e) {
+        const why = e.code === "ENOENT" ? `${cmd} is not installed (apt-get install -y cmake ninja-build)` : `${cmd} ${args.join(" ")} failed (exit ${e.status ?? e.signal})`;
+        throw new Error(`building ${bin}: ${why}; or set BTF_BIN to a btf binary`);
+      }
+    }
+    if (!existsSync(bin)) throw new Error(`ninja -C ${dir} btf finished without making ${bin}`);
   }
   return bin;
 }

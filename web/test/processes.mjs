@@ -4,7 +4,7 @@
 import { spawn } from "node:child_process";
 import { existsSync, mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { freePort } from "./browser.mjs";
+import { PATIENCE_MS, freePort } from "./browser.mjs";
 
 export const NGINX = process.env.NGINX ?? "/usr/sbin/nginx";
 
@@ -86,7 +86,7 @@ export async function startNginx(site, work) {
   let err = "";
   child.stderr.on("data", (d) => (err += d));
   const url = `http://127.0.0.1:${port}/`;
-  const deadline = Date.now() + 10000;
+  const deadline = Date.now() + PATIENCE_MS;
   for (;;) {
     if (child.exitCode !== null) {
       const log = existsSync(path.join(work, "error.log")) ? readFileSync(path.join(work, "error.log"), "utf8") : "";
@@ -100,7 +100,7 @@ export async function startNginx(site, work) {
     }
     if (Date.now() > deadline) {
       child.kill("SIGKILL");
-      throw new Error(`nginx did not answer on ${url} within 10 s: ${err}`);
+      throw new Error(`nginx did not answer on ${url} within ${PATIENCE_MS / 1000} s: ${err}`);
     }
     await new Promise((r) => setTimeout(r, 50));
   }

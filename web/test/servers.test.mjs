@@ -1,15 +1,16 @@
 // The viewer against real servers, in headless Chromium: `btf serve` (the WebSocket stream) and a
 // `btf bundle` folder served by Debian's nginx (HTTP with byte ranges), each behind a 2 Mbit/s
-// link (test/throttle.mjs) so that the 322 KiB package takes over a second and the test sees the
-// frames of the stages in between; then the final frame against `btf render` of the same scene,
-// the proof that the shader and the C++ evaluator agree. Pictures go to web/test-artifacts/servers/.
+// link (test/throttle.mjs) that holds the package at the end of each component until the page has
+// drawn a frame with it, so that the test sees a frame of every stage in between whatever the
+// machine's load; then the final frame against `btf render` of the same scene, the proof that the
+// shader and the C++ evaluator agree. Pictures go to web/test-artifacts/servers/.
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
 import { mkdirSync, rmSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { launchBrowser, meanDiff, openPage, pixels, render, snapshot, state, timeline, writePpm } from "./browser.mjs";
-import { ARTIFACTS, buildViewer, makeFixtures, run } from "./fixtures.mjs";
+import { PATIENCE_MS, launchBrowser, meanDiff, openPage, pixels, render, snapshot, state, timeline, writePpm } from "./browser.mjs";
+import { ARTIFACTS, buildViewer, listEntry, makeFixtures, run } from "./fixtures.mjs";
 import { startBtfServe, startNginx } from "./processes.mjs";
 import { startThrottle } from "./throttle.mjs";
 
@@ -41,38 +42,56 @@ after(async () => {
 });
 
 /**
- * Opens the demo view through a throttled link to `base`, waits for the whole package, and checks
- * the progressive refinement from the page's timeline: a frame with the first component drawn
- * while most bytes were still to come, several stages after it, each nearer to the final frame.
- * Returns the final frame.
+ * Opens the demo view through a slow link to `base` that stops the package at the end of each
+ * component but the last until the page has drawn a frame with that component, and checks the
+ * progressive refinement from the page's timeline: a frame with the first component drawn from a
+ * prefix of well under half the package, then a frame per component, each from the bytes up to
+ * that component's end and each nearer to the final frame. The stages are set by the bytes the
+ * link lets through, not by how fast the page draws. Returns the final frame.
  */
 async function streamThroughSlowLink(base, label, transport) {
   const link = await startThrottle(new URL(base).port, RATE);
+  const entry = listEntry("woven_fabric", fx.packages.woven_fabric, false);
+  const ends = entry.sections.filter((x) => /^b0\.k\d+$/.test(x.name)).map((x) => x.offset + x.size);
+  assert.equal(ends.length, 8);
+  // The package's bytes whichever way they come: the HTTP body, or the WebSocket's messages.
+  link.hold(/^\/(materials\/woven_fabric\.btfpkg|stream\/woven_fabric)$/, ends.slice(0, -1));
   const { page, problems } = await openPage(browser, link.url, `material=woven_fabric&size=${SIZE}x${SIZE}&deterministic=1&mip=0&hud=0&snapshots=1`);
   try {
-    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 60000 });
+    for (let k = 1; k < ends.length; ++k) {
+      // The link waits at the end of component k; the page draws a frame with it.
+      await page.waitForFunction((n) => window.btfViewer.state.error || window.btfViewer.timeline().some((e) => e.components === n), k, { timeout: PATIENCE_MS });
+      link.release();
+    }
+    await page.waitForFunction(() => window.btfViewer.state.complete || window.btfViewer.state.error, null, { timeout: PATIENCE_MS });
     await render(page);
     const s = await state(page);
     assert.equal(s.error, null);
     assert.equal(s.materials[0].transport, transport);
     assert.equal(s.components, 8);
+    assert.equal(s.bytes, s.total);
     const stages = (await timeline(page)).filter((e) => e.components > 0);
     const final = await pixels(page);
     const frames = stages.map((e) => snapshot(e, SIZE, SIZE));
     writePpm(path.join(OUT, `${label}-first.ppm`), frames[0]);
     writePpm(path.join(OUT, `${label}-final.ppm`), final);
     const d = frames.map((f) => meanDiff(f, final));
-    const summary = stages.map((e, i) => `${e.components} components, ${e.bytes} B at ${e.t.toFixed(0)} ms: ${d[i].toFixed(2)}`);
+    const summary = stages.map((e, i) => `${e.components} components, ${e.bytes} B${e.complete ? ", complete" : ""}: ${d[i].toFixed(2)}`);
     writeFileSync(path.join(OUT, `${label}-timeline.json`), JSON.stringify(summary, null, 1));
-    // The first frame came early: the stream had most of its bytes to go.
-    assert.ok(!stages[0].complete && stages[0].bytes < s.total / 2, summary.join("\n"));
-    assert.ok(stages.length >= 4, `only ${stages.length} stages seen:\n${summary.join("\n")}`);
+    // A frame per component, each drawn from exactly the bytes up to that component's end (the
+    // last one from the whole package), the first while most of the package was still to come.
+    const perComponent = ends.map((_, k) => stages.find((e) => e.components === k + 1));
+    assert.ok(perComponent.every((e) => e), `a component without its own frame:\n${summary.join("\n")}`);
+    assert.deepEqual(perComponent.slice(0, -1).map((e) => e.bytes), ends.slice(0, -1), summary.join("\n"));
+    assert.ok(!stages[0].complete && stages[0].components === 1 && stages[0].bytes < s.total / 2, summary.join("\n"));
+    assert.ok(stages[stages.length - 1].complete, summary.join("\n"));
     for (let k = 1; k < stages.length; ++k) {
-      assert.ok(stages[k].components >= stages[k - 1].components, summary.join("\n"));
+      assert.ok(stages[k].components >= stages[k - 1].components && stages[k].bytes >= stages[k - 1].bytes, summary.join("\n"));
       assert.ok(d[k] <= d[k - 1] + 0.05, `the difference to the final frame grew:\n${summary.join("\n")}`);
     }
     assert.ok(d[0] > 0.5, `no visible refinement:\n${summary.join("\n")}`);
     assert.ok(link.connections >= 1);
+    assert.ok(link.requests.some((r) => r.path === (transport === "websocket" ? "/stream/woven_fabric" : "/materials/woven_fabric.btfpkg")), "the package did not come through the link");
     assert.deepEqual(problems, []);
     await page.locator("canvas").screenshot({ path: path.join(OUT, `${label}-final.png`) });
     return final;
@@ -108,7 +127,7 @@ test("the final frame matches btf render of the same scene within a mean ΔE00 o
 
   const { page, problems } = await openPage(browser, serve.url, `scene=${encodeURIComponent(JSON.stringify(scene))}&deterministic=1&mip=0&hud=0`);
   try {
-    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: 60000 });
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
     await render(page);
     const s = await state(page);
     assert.deepEqual(s.objects, [{ shape: "sphere", material: "woven_declog", visible: true }]);

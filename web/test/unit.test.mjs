@@ -295,37 +295,6 @@ test("the TypeScript sources type-check (tsc --noEmit)", () => {
   execFileSync(process.execPath, [path.join(WEB, "node_modules/typescript/bin/tsc"), "--noEmit", "-p", WEB], { stdio: "pipe" });
 });
 
-test("the throttling proxy paces a server's bytes at the link rate and passes them unchanged", async () => {
-  const { createServer, connect } = await import("node:net");
-  const { startThrottle, parseRate } = await import("./throttle.mjs");
-  assert.equal(parseRate("10mbit"), 1e7);
-  assert.equal(parseRate("512kbit"), 512e3);
-  assert.throws(() => parseRate("fast"), /expected e\.g\. 10mbit/);
-  const payload = Buffer.alloc(500000);
-  for (let i = 0; i < payload.length; ++i) payload[i] = (i * 7919) & 0xff;
-  const origin = createServer((s) => s.end(payload));
-  await new Promise((r) => origin.listen(0, "127.0.0.1", r));
-  const rate = 16e6; // 2 MB/s: 0.25 s for the payload
-  const link = await startThrottle(origin.address().port, rate);
-  try {
-    const t0 = performance.now();
-    const got = await new Promise((resolve, reject) => {
-      const chunks = [];
-      const c = connect(link.port, "127.0.0.1");
-      c.on("data", (d) => chunks.push(d));
-      c.on("end", () => resolve(Buffer.concat(chunks)));
-      c.on("error", reject);
-    });
-    const seconds = (performance.now() - t0) / 1000;
-    assert.ok(got.equals(payload), "the bytes changed on the way");
-    const expected = (payload.length * 8) / rate;
-    assert.ok(seconds > 0.9 * expected && seconds < 1.5 * expected, `${seconds.toFixed(3)} s for ${expected} s of link time`);
-  } finally {
-    await link.close();
-    await new Promise((r) => origin.close(r));
-  }
-});
-
 // ---- the BSVTF tile cache -------------------------------------------------------------------
 
 test("the tile cache takes the C++ decisions on the recorded votes (data/cache-trace.json)", () => {

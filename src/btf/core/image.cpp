@@ -5,10 +5,13 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 
 #include "btf/core/color.h"
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
+#include "btf/util/progress.h"
 
 namespace btf {
 
@@ -44,12 +47,21 @@ const std::array<float, 256>& srgb_table() {
     return table;
 }
 
+// OpenImageIO calls this between scanlines: returning true abandons the decode, so SIGINT and
+// SIGTERM stop even a large image at once.
+bool decode_cancelled(void*, float) {
+    return Progress::all_cancelled();
+}
+
 Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encoding) {
     const OIIO::ImageSpec& spec = input.spec();
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
         fail("{}: image has no pixels", name);
-    if (int64_t(spec.width) * spec.height > (int64_t(1) << 30))
-        fail("{}: image of {}x{} pixels is too large", name, spec.width, spec.height);
+    check_image_size(spec.width, spec.height, name);
+    if (spec.nchannels > 64) fail("{}: image has {} channels", name, spec.nchannels);
+    // The decode buffer (floats, every channel) is the largest allocation.
+    check_alloc(uint64_t(spec.width) * uint64_t(spec.height) * uint64_t(spec.nchannels) * 4, name,
+                "decoding the image");
     const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT ||
                           spec.format.basetype == OIIO::TypeDesc::HALF ||
                           spec.format.basetype == OIIO::TypeDesc::DOUBLE;
@@ -66,7 +78,11 @@ Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encod
     if (is_8bit) {
         // Decode 8-bit files as bytes and map through a table (exact, and much faster).
         std::vector<uint8_t> pixels(count);
-        if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, pixels.data())) decode_error();
+        if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::UINT8, pixels.data(), OIIO::AutoStride,
+                              OIIO::AutoStride, OIIO::AutoStride, decode_cancelled)) {
+            Progress::check_all();
+            decode_error();
+        }
         // OpenImageIO reports some damage (e.g. a truncated JPEG) only through its error state.
         if (input.has_error()) decode_error();
         std::array<float, 256> table;
@@ -80,13 +96,21 @@ Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encod
         return image;
     }
     std::vector<float> pixels(count);
-    if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data())) decode_error();
+    if (!input.read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data(), OIIO::AutoStride,
+                          OIIO::AutoStride, OIIO::AutoStride, decode_cancelled)) {
+        Progress::check_all();
+        decode_error();
+    }
     if (input.has_error()) decode_error();
     const bool decode_srgb = !is_float && encoding == Encoding::kLinear;
     for (int64_t p = 0; p < image.num_pixels(); ++p) {
         for (int c = 0; c < 3; ++c) {
             float v = pixels[p * nc + (nc < 3 ? 0 : c)];
             if (decode_srgb) v = srgb_to_linear(v);
+            // Refused where it enters: a NaN or infinity would spread through every codec.
+            if (!std::isfinite(v))
+                fail("{}: texel ({}, {}) holds a non-finite value ({})", name, p % image.width(),
+                     p / image.width(), v);
             out[p * 3 + c] = v;
         }
     }

@@ -24,6 +24,7 @@
 
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf::h5 {
@@ -292,11 +293,37 @@ void write_matrix(const Context& ctx, hid_t file, const char* name, const std::v
         write_string_attribute(ctx, set, "columns", "x, y, z");
 }
 
+// A dataset must live in this file: an external or soft link (which may lead to one), external
+// raw storage and virtual datasets would read other files on the machine, so they are refused
+// unless the user allows them (Limits::allow_hdf5_external).
+void check_local(const Context& ctx, hid_t file, const char* name, hid_t set) {
+    if (limits().allow_hdf5_external) return;
+    const char* how =
+        "(refused: it would read another file; allow it with "
+        "--allow-hdf5-external or BTF_ALLOW_HDF5_EXTERNAL=1)";
+    H5L_info_t link;
+    ctx.h5(H5Lget_info(file, name, &link, H5P_DEFAULT), "cannot list the root group");
+    if (link.type == H5L_TYPE_EXTERNAL)
+        ctx.layout_error("dataset '{}' is an external link to another file {}", name, how);
+    if (link.type != H5L_TYPE_HARD)
+        ctx.layout_error("dataset '{}' is a soft or user-defined link {}", name, how);
+    if (set < 0) return;
+    Handle dcpl = ctx.handle(H5Dget_create_plist(set), H5Pclose,
+                             fmt::format("cannot read dataset '{}'", name));
+    if (H5Pget_layout(dcpl) == H5D_VIRTUAL)
+        ctx.layout_error("dataset '{}' is a virtual dataset {}", name, how);
+    if (ctx.h5(H5Pget_external_count(dcpl), fmt::format("cannot read dataset '{}'", name)) > 0)
+        ctx.layout_error("dataset '{}' keeps its data in external files {}", name, how);
+}
+
 Handle open_dataset(const Context& ctx, hid_t file, const char* name) {
     const htri_t exists = ctx.h5(H5Lexists(file, name, H5P_DEFAULT), "cannot list the root group");
     if (exists == 0) ctx.layout_error("dataset '{}' is missing", name);
-    return ctx.handle(H5Dopen2(file, name, H5P_DEFAULT), H5Dclose,
-                      fmt::format("cannot open dataset '{}'", name));
+    check_local(ctx, file, name, -1);
+    Handle set = ctx.handle(H5Dopen2(file, name, H5P_DEFAULT), H5Dclose,
+                            fmt::format("cannot open dataset '{}'", name));
+    check_local(ctx, file, name, set);
+    return set;
 }
 
 /// Reads a [rows, cols] numeric dataset as doubles; rows ≤ kMaxDirections.
@@ -659,6 +686,7 @@ Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nul
     if (dims[2] < 1 || dims[3] < 1 || dims[2] > kMaxSide || dims[3] > kMaxSide)
         ctx.layout_error("dataset 'images' declares {}×{} texels (each side must be 1 to {})",
                          dims[3], dims[2], kMaxSide);
+    check_image_size(int64_t(dims[3]), int64_t(dims[2]), ctx.name());
     layout.height = int(dims[2]);
     layout.width = int(dims[3]);
 

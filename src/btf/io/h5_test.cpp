@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf {
@@ -271,6 +272,61 @@ TEST_F(H5Test, ViewSubset) {
     options.views = {0, 0};
     EXPECT_THAT(error_of([&] { h5::open(file("a.h5"), options); }),
                 HasSubstr("view 0 requested twice"));
+}
+
+// Copies `from` to `to`, then makes the copy's dataset `name` something that reads another file:
+// an external link to `target`'s dataset, or a virtual dataset mapping it.
+void redirect_dataset(const fs::path& from, const fs::path& to, const char* name,
+                      const fs::path& target, bool virtual_dataset) {
+    fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+    const hid_t file = H5Fopen(to.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const hid_t original = H5Dopen2(file, name, H5P_DEFAULT);
+    const hid_t space = H5Dget_space(original), type = H5Dget_type(original);
+    H5Dclose(original);
+    ASSERT_GE(H5Ldelete(file, name, H5P_DEFAULT), 0);
+    if (!virtual_dataset) {
+        ASSERT_GE(H5Lcreate_external(target.c_str(), name, file, name, H5P_DEFAULT, H5P_DEFAULT),
+                  0);
+    } else {
+        const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+        H5Sselect_all(space);
+        ASSERT_GE(H5Pset_virtual(dcpl, space, target.c_str(), name, space), 0);
+        const hid_t set = H5Dcreate2(file, name, type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+        ASSERT_GE(set, 0);
+        H5Dclose(set);
+        H5Pclose(dcpl);
+    }
+    H5Sclose(space);
+    H5Tclose(type);
+    H5Fclose(file);
+}
+
+TEST_F(H5Test, DatasetsInOtherFilesAreRefusedUnlessAllowed) {
+    TestSource source;
+    h5::write(source, file("a.h5"));
+    for (const bool virtual_dataset : {false, true}) {
+        const fs::path linked = file(virtual_dataset ? "virtual.h5" : "linked.h5");
+        redirect_dataset(file("a.h5"), linked, "images", file("a.h5"), virtual_dataset);
+        EXPECT_THAT(error_of([&] { h5::open(linked); }),
+                    AllOf(HasSubstr(linked.filename().string()), HasSubstr("dataset 'images'"),
+                          HasSubstr(virtual_dataset ? "virtual dataset" : "external link"),
+                          HasSubstr("--allow-hdf5-external")));
+        const Limits saved = limits();
+        Limits allowed = saved;
+        allowed.allow_hdf5_external = true;
+        set_limits(allowed);
+        if (virtual_dataset) {
+            // Allowed, a virtual dataset still fails the layout (one chunk per image).
+            EXPECT_THAT(error_of([&] { h5::open(linked); }), HasSubstr("is not chunked"));
+            set_limits(saved);
+            continue;
+        }
+        std::unique_ptr<BtfSource> read;
+        EXPECT_NO_THROW(read = h5::open(linked));
+        set_limits(saved);
+        if (read) EXPECT_NEAR(read->image(1, 2).at(3, 4, 1), known_value(1, 2, 3, 4, 1), 1e-3);
+    }
 }
 
 TEST_F(H5Test, RawEncodingIsRejected) {

@@ -11,7 +11,9 @@
 
 #include "btf/core/color.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
+#include "btf/util/progress.h"
 
 namespace btf {
 
@@ -21,6 +23,15 @@ namespace {
 
 // No single image of a BTF comes near this; a larger declared size means a corrupt directory.
 constexpr uint64_t kMaxImageFileBytes = uint64_t(1) << 31;
+// Files and archive entries are read in pieces of this size, checking for cancellation between.
+constexpr uint64_t kReadChunk = uint64_t(1) << 20;
+
+// The most bytes any encoding of a width × height image needs: uncompressed 32-bit floats of four
+// channels, plus room for headers and metadata (ICC profiles, EXIF). A larger file is not an image
+// of that size (a small JPEG followed by a gigabyte of something else).
+uint64_t max_image_file_bytes(int width, int height) {
+    return uint64_t(width) * uint64_t(height) * 16 + (uint64_t(16) << 20);
+}
 
 // Files are listed in name order, whatever order the folder or archive gives them in.
 std::vector<size_t> name_order(const std::vector<std::string>& names) {
@@ -60,10 +71,17 @@ class FolderFiles final : public ImageFiles {
         if (n > kMaxImageFileBytes)
             fail("{}: file of {} bytes is too large for one image", path.string(), n);
         std::vector<unsigned char> bytes(n);
-        in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(n));
-        if (uint64_t(in.gcount()) != n)
-            fail("{}: read only {} of {} bytes (file changed or unreadable)", path.string(),
-                 in.gcount(), n);
+        uint64_t done = 0;
+        while (done < n) {
+            Progress::check_all();
+            const uint64_t piece = std::min(kReadChunk, n - done);
+            in.read(reinterpret_cast<char*>(bytes.data() + done), std::streamsize(piece));
+            done += uint64_t(in.gcount());
+            if (uint64_t(in.gcount()) != piece) break;
+        }
+        if (done != n)
+            fail("{}: read only {} of {} bytes (file changed or unreadable)", path.string(), done,
+                 n);
         return bytes;
     }
 
@@ -162,7 +180,12 @@ class ZipFiles final : public ImageFiles {
         if (!file) fail("{}: cannot open archive entry: {}", label(i), zip_strerror(m_zip));
         uint64_t done = 0;
         while (done < n) {
-            const zip_int64_t got = zip_fread(file, bytes.data() + done, n - done);
+            if (Progress::all_cancelled()) {
+                zip_fclose(file);
+                throw Cancelled();
+            }
+            const zip_int64_t got =
+                zip_fread(file, bytes.data() + done, std::min(kReadChunk, n - done));
             if (got < 0) {
                 const std::string error = zip_error_strerror(zip_file_get_error(file));
                 zip_fclose(file);
@@ -223,6 +246,13 @@ std::pair<int, int> ImageFiles::image_size(int i) const {
         const std::vector<unsigned char> bytes = read(i, prefix);
         if (auto size = read_image_size_memory(bytes.data(), bytes.size(), label(i), &error)) {
             if (size->first <= 0 || size->second <= 0) fail("{}: image has no pixels", label(i));
+            check_image_size(size->first, size->second, label(i));
+            if (file_size(i) > max_image_file_bytes(size->first, size->second))
+                fail(
+                    "{}: file of {} bytes for a {}×{} image, more than any encoding of it needs "
+                    "({} bytes at most): not an image of that size",
+                    label(i), file_size(i), size->first, size->second,
+                    max_image_file_bytes(size->first, size->second));
             return *size;
         }
         if (bytes.size() >= file_size(i)) break;

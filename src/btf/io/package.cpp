@@ -13,6 +13,7 @@
 
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf {
@@ -255,11 +256,7 @@ std::vector<Entry> read_table(const json& header, uint32_t version, const std::s
             fail("{}: inconsistent header: section {} ('{}') starts at offset {} but {} ends at {}",
                  what, index, entry.name, entry.offset,
                  index == 0 ? std::string("the header") : "the section before it", end);
-        if (entry.raw_size > kMaxSectionBytes)
-            fail(
-                "{}: inconsistent header: section '{}' declares {} decoded bytes, more than the "
-                "limit of {}",
-                what, entry.name, entry.raw_size, kMaxSectionBytes);
+        check_alloc(entry.raw_size, what, fmt::format("section '{}'", entry.name));
         if (entry.coding == SectionCoding::kRaw && entry.size != entry.raw_size)
             fail(
                 "{}: inconsistent header: raw section '{}' stores {} bytes but declares {} "

@@ -368,8 +368,8 @@ TEST(Package, InconsistentOrDamagedHeader) {
     expect([](json& h) { h["sections"][0]["raw_size"] = 11; },
            "inconsistent header: raw section 'a' stores 10 bytes but declares 11 decoded bytes");
     expect([](json& h) { h["sections"][2]["raw_size"] = uint64_t{1} << 40; },
-           "inconsistent header: section 'c' declares 1099511627776 decoded bytes, more than the "
-           "limit");
+           "section 'c' needs 1099511627776 bytes, over the limit of 4 GiB (raise it with "
+           "--max-alloc or BTF_MAX_ALLOC)");
     expect([](json& h) { h["sections"][2]["raw_size"] = 0; },
            "inconsistent header: zstd section 'c' stores");
     expect([](json& h) { h["sections"][2]["size"] = 0; },

@@ -13,6 +13,7 @@
 #include "btf/io/image_set.h"
 #include "btf/testing/support.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 namespace btf {
@@ -536,6 +537,63 @@ TEST(Ubo2003Malformed, ArchiveToolDebrisIsIgnored) {
     const fs::path archive = temp.path() / "debris.zip";
     write_zip(archive, files);
     EXPECT_EQ(ubo2003::open(archive)->num_views(), 1);
+}
+
+// The test JPEG with its frame header (SOF0 or SOF2) claiming width × height: what a crafted
+// archive holds. Only the header is read before the size check, so the data need not match.
+Bytes with_declared_size(Bytes jpeg, int width, int height) {
+    for (size_t i = 0; i + 9 < jpeg.size(); ++i)
+        if (jpeg[i] == 0xFF && (jpeg[i + 1] == 0xC0 || jpeg[i + 1] == 0xC2)) {
+            jpeg[i + 5] = uint8_t(height >> 8), jpeg[i + 6] = uint8_t(height);
+            jpeg[i + 7] = uint8_t(width >> 8), jpeg[i + 8] = uint8_t(width);
+            return jpeg;
+        }
+    ADD_FAILURE() << "no SOF marker in the test JPEG";
+    return jpeg;
+}
+
+TEST(Ubo2003Hostile, ImagesOverTheLimitAreRefusedBeforeDecoding) {
+    TempFolder temp;
+    // 16384² and 30000² used to be decoded (and exhaust memory); 65500² was refused only by
+    // `btf info`, not by `btf compress`. Every reader now refuses them when it opens the archive.
+    for (const int side : {16384, 30000, 65500}) {
+        FileMap files = material({0});
+        for (auto& [name, bytes] : files) bytes = with_declared_size(bytes, side, side);
+        const fs::path archive = temp.path() / fmt::format("huge{}.zip", side);
+        write_zip(archive, files);
+        EXPECT_THAT(error_of([&] { ubo2003::open(archive); }),
+                    AllOf(HasSubstr(archive.filename().string()),
+                          HasSubstr(fmt::format("{}×{} texels", side, side)),
+                          HasSubstr("exceeds the limit of 67108864 texels"),
+                          HasSubstr("--max-image-pixels")));
+        write_tree(temp.path() / fmt::format("tree{}", side), files);
+        EXPECT_THAT(error_of([&] { ubo2003::open(temp.path() / fmt::format("tree{}", side)); }),
+                    HasSubstr("exceeds the limit"));
+    }
+    // A user who means it raises the limit: the archive then opens (its images are 16384² as far
+    // as their headers say).
+    const Limits saved = limits();
+    Limits raised = saved;
+    raised.image_pixels = int64_t(16384) * 16384;
+    set_limits(raised);
+    const auto source = ubo2003::open(temp.path() / "huge16384.zip");
+    set_limits(saved);
+    EXPECT_EQ(source->width(), 16384);
+}
+
+TEST(Ubo2003Hostile, AnEntryLargerThanItsImageCouldBeIsRefused) {
+    // An 8×8 JPEG followed by 20 MiB of zeros (deflated to a few KiB): reading it used to take
+    // the whole entry into memory on every decode.
+    TempFolder temp;
+    FileMap files = material({0});
+    Bytes& padded = files["tv000_pv000/" + image_name(0, 5)];
+    padded.resize(padded.size() + (20u << 20), 0);
+    const fs::path archive = temp.path() / "padded.zip";
+    write_zip(archive, files, /*store=*/false);
+    EXPECT_LT(fs::file_size(archive), 1u << 20);
+    EXPECT_THAT(error_of([&] { ubo2003::open(archive); }),
+                AllOf(HasSubstr("padded.zip"), HasSubstr(image_name(0, 5)),
+                      HasSubstr("for a 8×8 image, more than any encoding of it needs")));
 }
 
 }  // namespace

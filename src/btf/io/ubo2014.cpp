@@ -199,6 +199,16 @@ class FactorizationSource final : public BtfSource {
                  m_info.path.string(), view, light, m_sampling.num_views(),
                  m_sampling.num_lights());
         m_f->image(m_views[view], light, out);
+        // Finite factors can still overflow the colour model's exp(): refuse the image here,
+        // where the values enter, rather than let NaN reach a codec.
+        const float* p = out.data();
+        for (int64_t i = 0; i < out.num_pixels() * 3; ++i)
+            if (!std::isfinite(p[i]))
+                fail(
+                    "{}: image (view {}, light {}): texel ({}, {}) decodes to a non-finite value "
+                    "(the factors overflow the colour model)",
+                    m_info.path.string(), view, light, (i / 3) % out.width(),
+                    (i / 3) / out.width());
     }
 
     const Factorization& factorization() const { return *m_f; }

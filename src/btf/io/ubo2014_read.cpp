@@ -15,6 +15,7 @@
 
 #include "btf/io/ubo2014.h"
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 
 namespace btf::ubo2014 {
 
@@ -477,6 +478,7 @@ std::shared_ptr<const Factorization> read(const fs::path& path, Progress& progre
         uint64_t(width) * height > kMaxTexels)
         in.fail_at(size_at, "declares {}×{} texels (each side must be 1..{}, at most {} texels)",
                    width, height, kMaxSide, kMaxTexels);
+    check_image_size(width, height, path.string());
     f->width = static_cast<int>(width);
     f->height = static_cast<int>(height);
     if (f->rotation_block) {

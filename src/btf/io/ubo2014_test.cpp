@@ -266,6 +266,23 @@ TEST_F(Ubo2014Test, RoundTripColourModel11Half) {
     EXPECT_THAT(source->info().note, HasSubstr("colour model 11"));
 }
 
+TEST_F(Ubo2014Test, FactorsThatOverflowTheColourModelAreRefusedWhereTheyEnter) {
+    // One legal half float of 65504 in the log-Y factor: exp() of the product overflows, which
+    // used to compress into an all-NaN package. The source refuses the image instead.
+    Factorization f =
+        random_factorization(small_sampling(3, 2), 5, 2, {3, 2, 2}, kColorModelLogYUV, 2);
+    f.factors[0].u(4, 0) = 65504.0f;
+    f.factors[0].sxv.col(0).setConstant(0.5f);
+    const fs::path p = path("overflow.btf");
+    write_dfmf(p, f);
+    const auto source = open(p, {});
+    Image image;
+    EXPECT_NO_THROW(source->read_image(0, 0, image));  // rows without the huge value decode
+    EXPECT_THAT(error_of([&] { source->read_image(2, 0, image); }),  // row 4 = view 2, light 0
+                AllOf(HasSubstr("overflow.btf"), HasSubstr("image (view 2, light 0)"),
+                      HasSubstr("non-finite value")));
+}
+
 TEST_F(Ubo2014Test, CosineFlagIsDividedOut) {
     Factorization f =
         random_factorization(small_sampling(2, 4), 3, 3, {2, 2, 2}, kColorModelLogYUV, 4);

@@ -10,6 +10,8 @@
 #include "btf/io/package.h"
 #include "btf/quality/plot.h"
 #include "btf/util/error.h"
+#include "btf/util/json_fields.h"
+#include "btf/util/limits.h"
 
 namespace btf::stream {
 
@@ -118,8 +120,9 @@ CatalogEntry describe_package(const fs::path& path) {
         // from (bsvtf/file.h).
         const nlohmann::json& material =
             entry.codec == "bsvtf" ? package.header.at("source") : package.header;
-        entry.width = material.at("width").get<int>();
-        entry.height = material.at("height").get<int>();
+        entry.width = int(json_fields::integer_at(material, "width", 1, 1 << 16));
+        entry.height = int(json_fields::integer_at(material, "height", 1, 1 << 16));
+        check_image_size(entry.width, entry.height, "extent");
         entry.views = int(material.at("views").at("theta").size());
         entry.lights = int(material.at("lights").at("theta").size());
         check(entry.width > 0 && entry.height > 0, "extent {}x{} texels is empty", entry.width,

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
@@ -35,6 +36,7 @@
 
 #include <fmt/format.h>
 
+#include "btf/stream/request.h"
 #include "btf/util/error.h"
 
 namespace btf::stream {
@@ -136,106 +138,6 @@ bool inside(const fs::path& path, const fs::path& root) {
     return p != path.end();
 }
 
-// ---- request targets ---------------------------------------------------------------------------
-
-struct DecodedTarget {
-    http::status error = http::status::ok;
-    std::string path;                   // decoded, starts with '/'
-    std::vector<std::string> segments;  // its non-empty segments
-};
-
-int hex_digit(char c) {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-}
-
-// Decodes the path of an origin-form target. Percent-escapes are decoded before the checks, so
-// %2e%2e is a dot segment and %2f a separator like '/'. Dot segments, names starting with '.'
-// (hidden files, temporary folders), backslashes and NUL are refused as not found: nothing
-// outside the roots, and nothing hidden inside them, exists as far as a client can tell.
-DecodedTarget decode_target(std::string_view target) {
-    DecodedTarget out;
-    if (target.empty() || target[0] != '/') {
-        out.error = http::status::bad_request;
-        return out;
-    }
-    target = target.substr(0, target.find_first_of("?#"));
-    for (size_t i = 0; i < target.size(); ++i) {
-        if (target[i] != '%') {
-            out.path += target[i];
-            continue;
-        }
-        const int hi = i + 2 < target.size() ? hex_digit(target[i + 1]) : -1;
-        const int lo = i + 2 < target.size() ? hex_digit(target[i + 2]) : -1;
-        if (hi < 0 || lo < 0) {
-            out.error = http::status::bad_request;
-            return out;
-        }
-        out.path += static_cast<char>(hi * 16 + lo);
-        i += 2;
-    }
-    if (out.path.find('\0') != std::string::npos || out.path.find('\\') != std::string::npos) {
-        out.error = http::status::not_found;
-        return out;
-    }
-    size_t start = 1;
-    while (start <= out.path.size()) {
-        size_t end = out.path.find('/', start);
-        if (end == std::string::npos) end = out.path.size();
-        std::string segment = out.path.substr(start, end - start);
-        if (!segment.empty()) {
-            if (segment[0] == '.') {
-                out.error = http::status::not_found;
-                return out;
-            }
-            out.segments.push_back(std::move(segment));
-        }
-        start = end + 1;
-    }
-    return out;
-}
-
-// Parses a Range header of one range: "bytes=a-b", "bytes=a-" or "bytes=-n". Returns the
-// inclusive [first, last] clamped to the file, or nothing when the header is malformed, asks for
-// several ranges or cannot be satisfied (all answered 416 by the protocol).
-std::optional<std::pair<uint64_t, uint64_t>> parse_range(std::string_view value, uint64_t size) {
-    const auto trim = [](std::string_view s) {
-        while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-        while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-        return s;
-    };
-    const auto number = [](std::string_view s) -> std::optional<uint64_t> {
-        if (s.empty() || s.size() > 18) return std::nullopt;
-        uint64_t n = 0;
-        for (const char c : s) {
-            if (c < '0' || c > '9') return std::nullopt;
-            n = n * 10 + uint64_t(c - '0');
-        }
-        return n;
-    };
-    value = trim(value);
-    if (value.substr(0, 6) != "bytes=") return std::nullopt;
-    value = trim(value.substr(6));
-    const size_t dash = value.find('-');
-    if (dash == std::string_view::npos || value.find(',') != std::string_view::npos)
-        return std::nullopt;
-    const std::string_view a = trim(value.substr(0, dash)), b = trim(value.substr(dash + 1));
-    if (size == 0) return std::nullopt;
-    if (a.empty()) {
-        const auto n = number(b);
-        if (!n || *n == 0) return std::nullopt;
-        return std::pair{size - std::min(*n, size), size - 1};
-    }
-    const auto first = number(a);
-    if (!first || *first >= size) return std::nullopt;
-    if (b.empty()) return std::pair{*first, size - 1};
-    const auto last = number(b);
-    if (!last || *last < *first) return std::nullopt;
-    return std::pair{*first, std::min(*last, size - 1)};
-}
-
 // ---- shared state and sessions -----------------------------------------------------------------
 
 class Session;
@@ -297,14 +199,182 @@ void Shared::remember(const std::shared_ptr<Session>& session) {
     sessions.emplace(session.get(), session);
 }
 
+// ---- the WebSocket client's byte stream --------------------------------------------------------
+
+// The TCP stream under a WebSocket session. It corrects three things in how Beast 1.74 ends a
+// connection that a client breaks (RFC 6455 §7.1.7: send a close frame, then close):
+// - Bytes the client sent right after its upgrade request, read with the request, are handed to
+//   Beast first instead of being lost with the HTTP session's buffer (a frame sent that early
+//   would otherwise never be seen, nor refused).
+// - Beast reads a 64-bit payload length with its top bit set (which RFC 6455 §5.2 forbids) as a
+//   very long message and closes with 1009. Those length bytes are replaced, as they pass, by
+//   zeros: a non-minimal length, which Beast refuses with 1002 like every other malformed header.
+// - Beast's teardown after its close frame reads at most one buffer of what the client still
+//   sends, then closes the socket. With more unread (the rest of an oversized message) the kernel
+//   answers with a reset, and the close frame, queued behind the stream's data, never arrives.
+//   async_teardown() below reads on to the client's end of stream (at most kDrainLimit bytes,
+//   within the linger time) before it closes.
+class ClientStream {
+  public:
+    using executor_type = beast::tcp_stream::executor_type;
+    static constexpr uint64_t kDrainLimit = uint64_t(1) << 20;
+
+    ClientStream(beast::tcp_stream&& stream, std::string early, std::chrono::milliseconds linger)
+        : m_next(std::move(stream)), m_early(std::move(early)), m_linger(linger) {}
+
+    executor_type get_executor() noexcept { return m_next.get_executor(); }
+    beast::tcp_stream& next_layer() noexcept { return m_next; }
+    const beast::tcp_stream& next_layer() const noexcept { return m_next; }
+    std::chrono::milliseconds linger() const { return m_linger; }
+
+    template <typename ConstBuffers, typename Handler>
+    void async_write_some(const ConstBuffers& buffers, Handler&& handler) {
+        m_next.async_write_some(buffers, std::forward<Handler>(handler));
+    }
+
+    template <typename MutableBuffers, typename Handler>
+    void async_read_some(const MutableBuffers& buffers, Handler&& handler) {
+        ReadOp<MutableBuffers, std::decay_t<Handler>>(std::forward<Handler>(handler), *this,
+                                                      buffers);
+    }
+
+  private:
+    template <typename MutableBuffers, typename Handler>
+    class ReadOp : public beast::async_base<Handler, executor_type> {
+      public:
+        template <typename H>
+        ReadOp(H&& handler, ClientStream& stream, const MutableBuffers& buffers)
+            : beast::async_base<Handler, executor_type>(std::forward<H>(handler),
+                                                        stream.get_executor()),
+              m_stream(stream),
+              m_buffers(buffers) {
+            if (!stream.m_early.empty()) {
+                const size_t n = net::buffer_copy(buffers, net::buffer(stream.m_early));
+                stream.m_early.erase(0, n);
+                stream.scan(buffers, n);
+                this->complete(false, beast::error_code{}, n);
+                return;
+            }
+            stream.m_next.async_read_some(buffers, std::move(*this));
+        }
+        void operator()(beast::error_code ec, size_t n) {
+            m_stream.scan(m_buffers, n);
+            this->complete(true, ec, n);
+        }
+
+      private:
+        ClientStream& m_stream;
+        MutableBuffers m_buffers;
+    };
+
+    // Follows the frames in the first `n` bytes of `buffers` (just read, not yet parsed by
+    // Beast), zeroing 64-bit lengths that have their top bit set.
+    template <typename MutableBuffers>
+    void scan(const MutableBuffers& buffers, size_t n) {
+        for (auto it = net::buffer_sequence_begin(buffers);
+             n > 0 && it != net::buffer_sequence_end(buffers); ++it) {
+            const net::mutable_buffer b = *it;
+            const size_t size = std::min(n, b.size());
+            scan(static_cast<uint8_t*>(b.data()), size);
+            n -= size;
+        }
+    }
+    void scan(uint8_t* p, size_t size) {
+        while (size > 0) {
+            if (m_payload > 0) {
+                const size_t skip = size_t(std::min<uint64_t>(m_payload, size));
+                m_payload -= skip, p += skip, size -= skip;
+                continue;
+            }
+            // A header byte: FIN, RSV and opcode; mask bit and 7-bit length; extended length;
+            // masking key.
+            if (m_header == 1) {
+                const int length7 = *p & 0x7f;
+                m_length_bytes = length7 == 127 ? 8 : length7 == 126 ? 2 : 0;
+                m_length = length7 < 126 ? uint64_t(length7) : 0;
+                m_header_size = 2 + m_length_bytes + (*p & 0x80 ? 4 : 0);
+            } else if (m_header >= 2 && m_header < 2 + m_length_bytes) {
+                if (m_header == 2 && m_length_bytes == 8 && (*p & 0x80)) m_top_bit = true;
+                if (m_top_bit) *p = 0;
+                m_length = m_length << 8 | *p;
+            }
+            ++p, --size;
+            if (++m_header == m_header_size) {
+                m_payload = m_length;
+                m_header = 0, m_header_size = 2, m_length_bytes = 0, m_length = 0;
+                m_top_bit = false;
+            }
+        }
+    }
+
+    beast::tcp_stream m_next;
+    std::string m_early;  // bytes that came with the upgrade request, not read by Beast yet
+    std::chrono::milliseconds m_linger;
+    // Where the client's bytes are: in a payload (m_payload bytes of it left) or in a header
+    // (m_header bytes of its m_header_size seen).
+    uint64_t m_payload = 0;
+    int m_header = 0, m_header_size = 2, m_length_bytes = 0;
+    uint64_t m_length = 0;
+    bool m_top_bit = false;
+};
+
+// Beast's websocket::stream ends a connection with async_teardown(), found by argument-dependent
+// lookup: stop sending, read what the client still sends to its end of stream (up to kDrainLimit
+// bytes, for at most the linger time), then close.
+template <typename Handler>
+class TeardownOp : public beast::async_base<Handler, ClientStream::executor_type> {
+  public:
+    template <typename H>
+    TeardownOp(H&& handler, ClientStream& stream)
+        : beast::async_base<Handler, ClientStream::executor_type>(std::forward<H>(handler),
+                                                                  stream.get_executor()),
+          m_stream(stream.next_layer()),
+          m_buffer(std::make_unique<std::array<char, 16384>>()) {
+        beast::error_code ec;
+        m_stream.socket().shutdown(tcp::socket::shutdown_send, ec);
+        if (ec) {
+            m_stream.close();
+            this->complete(false, ec);
+            return;
+        }
+        m_stream.expires_after(stream.linger());
+        m_stream.async_read_some(net::buffer(*m_buffer), std::move(*this));
+    }
+    void operator()(beast::error_code ec, size_t n) {
+        m_drained += n;
+        if (!ec && m_drained <= ClientStream::kDrainLimit) {
+            m_stream.async_read_some(net::buffer(*m_buffer), std::move(*this));
+            return;
+        }
+        m_stream.close();
+        this->complete(true, ec == net::error::eof ? beast::error_code{} : ec);
+    }
+
+  private:
+    beast::tcp_stream& m_stream;
+    std::unique_ptr<std::array<char, 16384>> m_buffer;
+    uint64_t m_drained = 0;
+};
+
+template <typename Handler>
+void async_teardown(beast::role_type, ClientStream& stream, Handler&& handler) {
+    TeardownOp<std::decay_t<Handler>>(std::forward<Handler>(handler), stream);
+}
+
 // Streams one package over an upgraded connection: begin message, the file in binary messages
 // that end at every section boundary, end message, close 1000. One write at a time; the next
 // chunk is read from disk only when the socket has taken the previous one.
 class WebSocketSession : public Session, public std::enable_shared_from_this<WebSocketSession> {
   public:
-    WebSocketSession(beast::tcp_stream&& stream, Shared& shared, const CatalogEntry& entry,
-                     File file)
-        : Session(shared, true), m_ws(std::move(stream)), m_entry(entry), m_file(std::move(file)) {
+    // `early`: what the client sent after its upgrade request, read with it.
+    WebSocketSession(beast::tcp_stream&& stream, std::string early, Shared& shared,
+                     const CatalogEntry& entry, File file)
+        : Session(shared, true),
+          m_ws(
+              std::move(stream), std::move(early),
+              std::min<std::chrono::milliseconds>(shared.options.timeout, std::chrono::seconds(2))),
+          m_entry(entry),
+          m_file(std::move(file)) {
         m_boundaries.push_back(entry.header_bytes);
         for (const CatalogSection& s : entry.sections) m_boundaries.push_back(s.offset + s.size);
         m_boundaries.push_back(entry.bytes);
@@ -352,8 +422,9 @@ class WebSocketSession : public Session, public std::enable_shared_from_this<Web
     }
 
     // The client sends nothing; whatever it sends is read and dropped so that its close frame
-    // and pings are answered. A message above the limit fails the read, and Beast closes the
-    // connection with 1009.
+    // and pings are answered. A frame that breaks RFC 6455 fails the read, and Beast closes the
+    // connection with 1002 (1009 for a message above the limit) after the message being written,
+    // which ends the stream: the next write fails.
     void read() {
         m_ws.async_read(m_input,
                         beast::bind_front_handler(&WebSocketSession::on_read, shared_from_this()));
@@ -376,8 +447,8 @@ class WebSocketSession : public Session, public std::enable_shared_from_this<Web
         // replies) must not inherit it.
         beast::get_lowest_layer(m_ws).expires_never();
         // A failed write ends the stream. The socket is not closed here: after a timeout the TCP
-        // layer has closed it, after a failed read Beast is sending its close frame (1009) and
-        // draining the client, and a dead peer fails the pending read too.
+        // layer has closed it, after a failed read Beast is sending its close frame (1002 or
+        // 1009) and draining the client, and a dead peer fails the pending read too.
         if (ec) return;
         if (m_done) {
             close(websocket::close_code::normal, "");
@@ -410,7 +481,7 @@ class WebSocketSession : public Session, public std::enable_shared_from_this<Web
                          });
     }
 
-    websocket::stream<beast::tcp_stream> m_ws;
+    websocket::stream<ClientStream> m_ws;
     const CatalogEntry& m_entry;
     File m_file;
     Request m_upgrade;
@@ -502,9 +573,9 @@ class HttpSession : public Session, public std::enable_shared_from_this<HttpSess
 
     void handle() {
         const DecodedTarget target = decode_target(std_view(m_request.target()));
-        if (target.error == http::status::bad_request)
-            return send_error(target.error, "malformed request target", true);
-        if (target.error != http::status::ok) return send_error(target.error, "not found");
+        if (target.status == 400)
+            return send_error(http::status::bad_request, "malformed request target", true);
+        if (target.status != 200) return send_error(http::status::not_found, "not found");
         const std::string& path = target.path;
 
         if (path == "/") return send_index();
@@ -524,19 +595,39 @@ class HttpSession : public Session, public std::enable_shared_from_this<HttpSess
             const std::string_view id = std::string_view(path).substr(8);
             const CatalogEntry* entry = valid_id(id) ? m_shared.catalog.find(id) : nullptr;
             if (!entry) return send_error(http::status::not_found, "no such material");
-            if (!websocket::is_upgrade(m_request))
-                return send_error(http::status::bad_request,
-                                  "a WebSocket endpoint: send a GET with Upgrade: websocket");
+            const HandshakeCheck handshake = check_websocket_handshake(
+                {.method = std_view(m_request.method_string()),
+                 .version = m_request.version(),
+                 .host = field_values(http::field::host),
+                 .connection = field_values(http::field::connection),
+                 .upgrade = field_values(http::field::upgrade),
+                 .key = field_values(http::field::sec_websocket_key),
+                 .websocket_version = field_values(http::field::sec_websocket_version)});
+            if (handshake.status == 426)
+                return send_error(
+                    http::status::upgrade_required, handshake.message, false,
+                    [](http::fields& f) { f.set(http::field::sec_websocket_version, "13"); });
+            if (handshake.status != 101)
+                return send_error(http::status::bad_request, handshake.message);
             File file = open_package(*entry);
             if (!file.is_open()) return;
-            auto session = std::make_shared<WebSocketSession>(std::move(m_stream), m_shared, *entry,
-                                                              std::move(file));
+            auto session = std::make_shared<WebSocketSession>(
+                std::move(m_stream), beast::buffers_to_string(m_buffer.data()), m_shared, *entry,
+                std::move(file));
             m_handed_off = true;
             m_shared.remember(session);
             session->run(std::move(m_request));
             return;
         }
         send_static(target.segments);
+    }
+
+    // The values of every field line named `field`, in order.
+    std::vector<std::string_view> field_values(http::field field) const {
+        std::vector<std::string_view> values;
+        for (auto [it, end] = m_request.equal_range(field); it != end; ++it)
+            values.push_back(std_view(it->value()));
+        return values;
     }
 
     // Opens a catalog entry's package, or answers 500 when the file is gone or has changed
@@ -633,27 +724,28 @@ class HttpSession : public Session, public std::enable_shared_from_this<HttpSess
         read_request();
     }
 
-    // A file in chunks of chunk_bytes, each read when the socket has taken the one before; a
-    // Range header selects one range (206) or is refused (416).
+    // A file in chunks of chunk_bytes, each read when the socket has taken the one before; the
+    // Range policy of parse_range() selects the whole file (200), one range (206) or refuses
+    // (416).
     void send_file(File file, std::string_view type) {
         const uint64_t size = file.size();
-        uint64_t first = 0, end = size;
-        http::status status = http::status::ok;
-        const auto range_field = m_request.find(http::field::range);
-        if (range_field != m_request.end()) {
-            const auto range = parse_range(std_view(range_field->value()), size);
-            if (!range)
-                return send_error(
-                    http::status::range_not_satisfiable,
-                    fmt::format("range '{}' is not one satisfiable byte range of the {} bytes",
-                                std_view(range_field->value()), size),
-                    false, [size](http::fields& f) {
-                        f.set(http::field::content_range, fmt::format("bytes */{}", size));
-                    });
-            first = range->first;
-            end = range->second + 1;
-            status = http::status::partial_content;
-        }
+        // Range is defined for GET alone (RFC 9110 §14.2). If-Range names a validator that this
+        // server never sends, so its condition is false and the answer is the whole file
+        // (§13.1.5).
+        std::vector<std::string_view> ranges;
+        if (!m_head && m_request.find(http::field::if_range) == m_request.end())
+            ranges = field_values(http::field::range);
+        const RangeAnswer range = parse_range(ranges, size);
+        if (range.status == 416)
+            return send_error(
+                http::status::range_not_satisfiable,
+                fmt::format("range '{}' selects none of the {} bytes", ranges.front(), size), false,
+                [size](http::fields& f) {
+                    f.set(http::field::content_range, fmt::format("bytes */{}", size));
+                });
+        const uint64_t first = range.first, end = range.end;
+        const http::status status =
+            range.status == 206 ? http::status::partial_content : http::status::ok;
         m_file = std::move(file);
         m_position = first;
         m_end = end;

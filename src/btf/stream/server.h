@@ -8,7 +8,10 @@
 /// so a slow client slows its own transfer and costs no memory. Requests are checked before
 /// anything is touched: only files under the web root (after resolving symbolic links) and the
 /// catalog's packages are served; malformed, oversized or unsupported requests get a JSON error
-/// with the protocol's status code; idle and stalled connections time out.
+/// with the protocol's status code; idle and stalled connections time out. The rules for targets,
+/// byte ranges and the WebSocket handshake are in request.h; a WebSocket client that breaks RFC
+/// 6455 gets a close frame (1002, or 1009 for a message above websocket_message_limit) before
+/// the connection closes.
 
 #include <chrono>
 #include <cstddef>

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <mutex>
+#include <set>
 #include <system_error>
 
 #include "btf/util/error.h"
@@ -10,6 +12,33 @@
 namespace btf {
 
 namespace fs = std::filesystem;
+
+namespace {
+// Every temporary that exists now, so that a process which must end at once (a second SIGINT, a
+// cancellation that a library call does not notice) can still leave no partial output.
+std::mutex g_live_mutex;
+std::multiset<fs::path>& live() {
+    static std::multiset<fs::path> paths;
+    return paths;
+}
+void remember(const fs::path& path) {
+    std::lock_guard lock(g_live_mutex);
+    live().insert(path);
+}
+void forget(const fs::path& path) {
+    std::lock_guard lock(g_live_mutex);
+    if (auto it = live().find(path); it != live().end()) live().erase(it);
+}
+}  // namespace
+
+void AtomicOutput::remove_all_temporaries() noexcept {
+    std::lock_guard lock(g_live_mutex);
+    for (const fs::path& path : live()) {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+    live().clear();
+}
 
 AtomicOutput::AtomicOutput(fs::path destination, bool directory)
     : m_destination(std::move(destination)), m_directory(directory) {
@@ -26,6 +55,7 @@ AtomicOutput::AtomicOutput(fs::path destination, bool directory)
         fail("{}: cannot write a folder: a file of that name exists", m_destination.string());
     m_temp = parent / fmt::format(".{}.tmp-{}-{}", m_destination.filename().string(), ::getpid(),
                                   counter.fetch_add(1));
+    remember(m_temp);
     if (directory) {
         if (!fs::create_directory(m_temp, ec))
             fail("{}: cannot create temporary folder: {}", m_temp.string(), ec.message());
@@ -36,6 +66,7 @@ AtomicOutput::~AtomicOutput() {
     if (m_committed) return;
     std::error_code ec;
     fs::remove_all(m_temp, ec);
+    forget(m_temp);
 }
 
 void AtomicOutput::commit() {
@@ -45,7 +76,13 @@ void AtomicOutput::commit() {
              m_temp.string());
     if (m_directory && fs::exists(m_destination, ec))
         fail("{}: cannot write a folder: it exists already", m_destination.string());
-    fs::rename(m_temp, m_destination, ec);
+    {
+        // Under the lock: a forced exit removes the temporary before or never.
+        std::lock_guard lock(g_live_mutex);
+        fs::rename(m_temp, m_destination, ec);
+        if (!ec)
+            if (auto it = live().find(m_temp); it != live().end()) live().erase(it);
+    }
     if (ec) fail("{}: cannot move output into place: {}", m_destination.string(), ec.message());
     m_committed = true;
 }
@@ -56,6 +93,7 @@ fs::path AtomicOutputSet::add(fs::path destination) {
     fs::path written = m_outputs.back()->temp_path();
     written += extension;
     m_written.push_back(written);
+    remember(written);
     return written;
 }
 
@@ -68,6 +106,7 @@ void AtomicOutputSet::commit() {
     for (size_t i = 0; i < m_outputs.size(); ++i) {
         std::error_code ec;
         fs::rename(m_written[i], m_outputs[i]->temp_path(), ec);
+        forget(m_written[i]);
         if (ec)
             fail("{}: cannot move output into place: {}", m_outputs[i]->destination().string(),
                  ec.message());
@@ -81,6 +120,7 @@ AtomicOutputSet::~AtomicOutputSet() {
     for (const fs::path& p : m_written) {
         std::error_code ec;
         fs::remove(p, ec);
+        forget(p);
     }
 }
 

@@ -27,6 +27,11 @@ class AtomicOutput {
     /// Renames the temporary into place (replacing an existing file atomically).
     void commit();
 
+    /// Removes every temporary of every AtomicOutput and AtomicOutputSet that has not been
+    /// committed: for a process about to end at once (the CLI's second signal, or a cancellation
+    /// that does not unwind in time), so that it still leaves no partial output.
+    static void remove_all_temporaries() noexcept;
+
   private:
     std::filesystem::path m_destination;
     std::filesystem::path m_temp;

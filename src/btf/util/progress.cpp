@@ -54,6 +54,10 @@ bool Progress::all_cancelled() noexcept {
     return g_cancel_all.load();
 }
 
+void Progress::check_all() {
+    if (g_cancel_all.load()) throw Cancelled();
+}
+
 void Progress::poll() const {
     if (m_cancelled.load() || g_cancel_all.load()) throw Cancelled();
 }

@@ -40,6 +40,9 @@ class Progress {
     /// it from its SIGINT/SIGTERM handler so interrupted runs unwind and leave no temporary files).
     static void cancel_all() noexcept;
     static bool all_cancelled() noexcept;
+    /// Throws btf::Cancelled if cancel_all() was called: for loops that read or decode input
+    /// without a Progress of their own (zip entries, images, HDF5 chunks).
+    static void check_all();
 
     uint64_t done() const { return m_done.load(); }
     uint64_t total() const { return m_total.load(); }
