@@ -41,12 +41,14 @@ test-sanitize: bootstrap $(SANITIZE_DIR)/build.ninja
 
 ## Every libFuzzer target in fuzz/ for FUZZ_SECONDS each (ASan + UBSan), from its corpus; new
 ## inputs go to build/sanitize/fuzz/<target>/, not into the repository (FUZZ_MERGE=1 merges them
-## into fuzz/corpus/). FUZZ_TARGETS="package hdf5" runs only those.
+## into fuzz/corpus/). FUZZ_TARGETS="package hdf5" runs only those; FUZZ_JOBS=2 two at a time.
 FUZZ_SECONDS ?= 120
 FUZZ_TARGETS ?=
+FUZZ_JOBS ?= 1
 fuzz: bootstrap $(SANITIZE_DIR)/build.ninja
 	cmake --build $(SANITIZE_DIR) -j $(JOBS) --target fuzzers
-	FUZZ_MERGE=$(FUZZ_MERGE) bash fuzz/run.sh $(SANITIZE_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+	FUZZ_MERGE=$(FUZZ_MERGE) FUZZ_JOBS=$(FUZZ_JOBS) \
+	  bash fuzz/run.sh $(SANITIZE_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
 
 ## Rebuilds the seed corpora in fuzz/corpus/ and the fixtures in fuzz/data/ with this build's
 ## writers (fuzz/make_corpus.sh).

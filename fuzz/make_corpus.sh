@@ -177,6 +177,14 @@ EOF
 put scene full.json "$tmp/full.json"
 put scene shapes.json "$tmp/shapes.json"
 
+# Requests to the server (the request target, Range fields, a WebSocket handshake).
+mkdir -p "$corpus/request"
+printf 'GET /materials/a%%20b.btfpkg?x=1 HTTP/1.1\r\nHost: localhost\r\n\r\n' > "$corpus/request/get"
+printf 'GET /a.bsvtf HTTP/1.1\r\nHost: h\r\nRange: bytes=0-99\r\n\r\n' > "$corpus/request/range"
+printf 'GET /a HTTP/1.1\r\nRange: bytes=-500\r\nRange: BYTES=10-,20-30\r\n\r\n' > "$corpus/request/ranges"
+printf 'GET /%%2e%%2e/etc/passwd HTTP/1.1\r\nRange: bytes=0-18446744073709551616\r\n\r\n' > "$corpus/request/traversal"
+printf 'GET /ws HTTP/1.1\r\nHost: localhost:8080\r\nUpgrade: websocket\r\nConnection: keep-alive, Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n' > "$corpus/request/handshake"
+
 # Each seed must be valid as written: check it with the normal reader where there is one.
 for f in "$corpus"/codec_*/*.btfpkg "$corpus"/bsvtf/*.bsvtf; do "$btf" info "$f" > /dev/null; done
 du -sh "$corpus" "$data"
