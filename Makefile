@@ -6,7 +6,8 @@ BUILD_DIR := build/$(PRESET)
 JOBS      ?= $(shell nproc)
 BTF       := $(BUILD_DIR)/btf
 
-.PHONY: all bootstrap configure build test demo format format-check bench clean
+.PHONY: all bootstrap configure build test demo format format-check bench clean \
+        test-sanitize fuzz fuzz-corpus
 
 all: build
 
@@ -25,6 +26,35 @@ build: bootstrap $(BUILD_DIR)/build.ninja
 ## The whole test suite: formatting, then every GoogleTest case through CTest.
 test: build format-check
 	ctest --test-dir $(BUILD_DIR) -j $(JOBS) --output-on-failure --timeout 900
+
+## The C++ suite built with AddressSanitizer + UndefinedBehaviorSanitizer (clang, the `sanitize`
+## preset in build/sanitize), fuzz corpus replays included. The web viewer's tests (node and
+## chromium, no C++ of ours beyond the `btf` they call) are left out.
+SANITIZE_DIR := build/sanitize
+$(SANITIZE_DIR)/build.ninja: | bootstrap
+	cmake --preset sanitize
+
+test-sanitize: bootstrap $(SANITIZE_DIR)/build.ninja
+	cmake --build $(SANITIZE_DIR) -j $(JOBS)
+	LSAN_OPTIONS=suppressions=$(CURDIR)/fuzz/lsan.supp:print_suppressions=0 \
+	  ctest --test-dir $(SANITIZE_DIR) -j $(JOBS) --output-on-failure --timeout 1800 -E '^WebViewer[.]'
+
+## Every libFuzzer target in fuzz/ for FUZZ_SECONDS each (ASan + UBSan), from its corpus; new
+## inputs go to build/sanitize/fuzz/<target>/, not into the repository (FUZZ_MERGE=1 merges them
+## into fuzz/corpus/). FUZZ_TARGETS="package hdf5" runs only those; FUZZ_JOBS=2 two at a time.
+FUZZ_SECONDS ?= 120
+FUZZ_TARGETS ?=
+FUZZ_JOBS ?= 1
+fuzz: bootstrap $(SANITIZE_DIR)/build.ninja
+	cmake --build $(SANITIZE_DIR) -j $(JOBS) --target fuzzers
+	FUZZ_MERGE=$(FUZZ_MERGE) FUZZ_JOBS=$(FUZZ_JOBS) \
+	  bash fuzz/run.sh $(SANITIZE_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+## Rebuilds the seed corpora in fuzz/corpus/ and the fixtures in fuzz/data/ with this build's
+## writers (fuzz/make_corpus.sh).
+fuzz-corpus: build
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target fuzz_make_seeds
+	bash fuzz/make_corpus.sh $(BUILD_DIR)
 
 ## The main job: a built-in default material, synthesized and examined (see scripts/demo.sh).
 demo: build

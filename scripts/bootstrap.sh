@@ -21,6 +21,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
   python3 python3-h5py python3-numpy
   chromium nginx
+  clang-14 libfuzzer-14-dev  # make fuzz, make test-sanitize
 )
 # The web viewer is built with node and npm; any node ≥ 18 will do (Debian's, or one installed
 # from elsewhere, whose package may not be called nodejs).

@@ -4,6 +4,7 @@
 #include <libdeflate.h>
 
 #if defined(__x86_64__)
+#include <cpuid.h>
 #include <immintrin.h>
 #endif
 
@@ -492,7 +493,12 @@ __attribute__((target("avx,f16c"))) void from_half_f16c(const uint16_t* in, floa
     for (; i < n; ++i) out[i] = float(Eigen::numext::bit_cast<Eigen::half>(in[i]));
 }
 bool have_f16c() {
-    static const bool have = __builtin_cpu_supports("avx") && __builtin_cpu_supports("f16c");
+    // F16C from CPUID directly: clang's __builtin_cpu_supports does not know "f16c".
+    static const bool have = [] {
+        unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+        return __builtin_cpu_supports("avx") && __get_cpuid(1, &eax, &ebx, &ecx, &edx) &&
+               (ecx & bit_F16C) != 0;
+    }();
     return have;
 }
 #endif
@@ -575,18 +581,34 @@ bool has_hdf5_signature(const fs::path& path) {
     return false;
 }
 
-Layout open_layout(const fs::path& path) {
+/// File access properties for a file image in memory: the core driver, no backing store.
+Handle memory_access(const Context& ctx, const std::vector<uint8_t>& image) {
+    Handle fapl = ctx.handle(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, "cannot set up file access");
+    ctx.h5(H5Pset_fapl_core(fapl, 1 << 16, false), "cannot set up file access");
+    ctx.h5(H5Pset_file_image(fapl, const_cast<uint8_t*>(image.data()), image.size()),
+           "cannot set up file access");
+    return fapl;
+}
+
+/// Opens and validates the file at `path` or, when `image` is given, the file image in memory
+/// (`path` then only names it).
+Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nullptr) {
     const Context ctx(path);
     std::error_code ec;
-    if (!fs::exists(path, ec)) fail("{}: no such file", ctx.name());
-    if (!fs::is_regular_file(path, ec)) fail("{}: not a file", ctx.name());
-    if (!std::ifstream(path, std::ios::binary))
-        fail("{}: cannot open for reading: {}", ctx.name(), std::strerror(errno));
-    if (!has_hdf5_signature(path)) fail("{}: not an HDF5 file (no HDF5 signature)", ctx.name());
+    if (image) {
+        if (image->size() < 8 || std::memcmp(image->data(), "\x89HDF\r\n\x1a\n", 8) != 0)
+            fail("{}: not an HDF5 file (no HDF5 signature at byte 0)", ctx.name());
+    } else {
+        if (!fs::exists(path, ec)) fail("{}: no such file", ctx.name());
+        if (!fs::is_regular_file(path, ec)) fail("{}: not a file", ctx.name());
+        if (!std::ifstream(path, std::ios::binary))
+            fail("{}: cannot open for reading: {}", ctx.name(), std::strerror(errno));
+        if (!has_hdf5_signature(path)) fail("{}: not an HDF5 file (no HDF5 signature)", ctx.name());
+    }
 
     Lock lock;
     Layout layout;
-    const Handle fapl = file_access(ctx);
+    const Handle fapl = image ? memory_access(ctx, *image) : file_access(ctx);
     layout.file = ctx.handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl), H5Fclose,
                              "cannot open HDF5 file (truncated or corrupt?)");
     const hid_t file = layout.file;
@@ -967,6 +989,16 @@ std::unique_ptr<BtfSource> open(const fs::path& path, const OpenOptions& options
           "{}: btfkit HDF5 holds linear float values; raw 8-bit code values cannot be read from it",
           path.string());
     return std::make_unique<H5Source>(path, open_layout(path), options);
+}
+
+std::unique_ptr<BtfSource> open_memory(std::vector<uint8_t> image, const std::string& name,
+                                       const OpenOptions& options) {
+    check(options.encoding == Encoding::kLinear,
+          "{}: btfkit HDF5 holds linear float values; raw 8-bit code values cannot be read from it",
+          name);
+    // HDF5 copies the image into the file access properties and the core driver copies it
+    // again: `image` need not outlive the source.
+    return std::make_unique<H5Source>(name, open_layout(name, &image), options);
 }
 
 FileHeader read_header(const fs::path& path) {

@@ -19,6 +19,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "btf/io/open.h"
 #include "btf/io/source.h"
@@ -68,6 +69,11 @@ bool probe(const std::filesystem::path& path);
 /// `options.encoding` must be Encoding::kLinear. read_image() is thread-safe and throws
 /// btf::Error naming the view and light for a NaN or infinite value in the file.
 std::unique_ptr<BtfSource> open(const std::filesystem::path& path, const OpenOptions& options = {});
+
+/// open() for a file held in memory (HDF5's core driver on a copy of `image`, nothing read from or
+/// written to disk); `name` stands for the file in errors and in info().
+std::unique_ptr<BtfSource> open_memory(std::vector<uint8_t> image, const std::string& name,
+                                       const OpenOptions& options = {});
 
 /// The file-level description stored in a btfkit HDF5 file.
 struct FileHeader {

@@ -217,10 +217,13 @@ std::vector<Entry> read_table(const json& header, uint32_t version, const std::s
         for (const char* field : kSectionFields)
             if (!e.contains(field))
                 fail("{}: header: section {} has no field '{}'", what, index, field);
-        for (const auto& [key, value] : e.items())
+        for (const auto& item : e.items()) {
+            // Not a structured binding: clang before 16 cannot capture one in a lambda.
+            const std::string& key = item.key();
             if (std::find_if(std::begin(kSectionFields), std::end(kSectionFields),
                              [&](const char* f) { return key == f; }) == std::end(kSectionFields))
                 fail("{}: header: section {} has an unknown field '{}'", what, index, key);
+        }
         Entry entry;
         const json& name = e.at("name");
         if (!name.is_string() || name.get<std::string>().empty())

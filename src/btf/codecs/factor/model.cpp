@@ -292,6 +292,8 @@ namespace {
 
 template <typename T>
 void append(std::vector<uint8_t>& out, const T* values, size_t count) {
+    // memcpy from the null data() of an empty vector is undefined even for 0 bytes.
+    if (count == 0) return;
     const size_t at = out.size();
     out.resize(at + count * sizeof(T));
     std::memcpy(out.data() + at, values, count * sizeof(T));
