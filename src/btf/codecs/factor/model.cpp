@@ -606,7 +606,9 @@ Model from_package(const Package& package) {
                 if (means) {
                     if (means->data.size() < (mean_at + rows) * 4)
                         fail("section 'means' is too short");
-                    std::memcpy(b.mean.data(), means->data.data() + mean_at * 4, rows * 4);
+                    // Not for 0 rows: memcpy to the null data() of an empty vector is undefined.
+                    if (rows > 0)
+                        std::memcpy(b.mean.data(), means->data.data() + mean_at * 4, rows * 4);
                     mean_at += rows;
                 }
             }
