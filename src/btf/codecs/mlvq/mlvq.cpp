@@ -609,8 +609,10 @@ double invert_linear(Value v, int n, double target) {
             double x;
             if (std::abs(b - a) < 1e-12 * std::max(a + b, 1e-300))
                 x = segment > 0 ? r / segment : 0.5;
-            else  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], in the stable form
+            else if (r > 0)  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], stable form
                 x = 2 * r / (a + std::sqrt(std::max(0.0, a * a + 2 * (b - a) * r)));
+            else  // r = 0 with a = 0 (or a crafted a < 0) would be 0 / 0
+                x = 0;
             return i + std::clamp(x, 0.0, 1.0);
         }
         target -= segment;
@@ -659,6 +661,8 @@ void MlvqMaterial::sample_mixture(SampleState& s) const {
         s.mix.mass[c] = mass > 0 ? mass : 0;
         s.mix.total += s.mix.mass[c];
     }
+    // Scales of a crafted package can multiply beyond the float range: no masses to sample by.
+    if (!std::isfinite(s.mix.total)) s.mix.total = 0;
 }
 
 // The component, then α by the inverse CDF of its row masses (ξ1 rescaled within its share).
