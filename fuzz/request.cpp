@@ -90,8 +90,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         if (colon == std::string_view::npos) continue;
         const std::string_view name = lines[i].substr(0, colon);
         std::string_view value = lines[i].substr(colon + 1);
+        // Optional whitespace around a field value is not part of it (RFC 9110 §5.5); the
+        // server's HTTP parser strips it before these functions see the value.
         while (!value.empty() && (value.front() == ' ' || value.front() == '\t'))
             value.remove_prefix(1);
+        while (!value.empty() && (value.back() == ' ' || value.back() == '\t'))
+            value.remove_suffix(1);
         if (iequals(name, "range")) ranges.push_back(value);
         if (iequals(name, "host")) request.host.push_back(value);
         if (iequals(name, "connection")) request.connection.push_back(value);

@@ -174,11 +174,13 @@ json mutate_number(const json& v, Rng& rng) {
     switch (rng() % 4) {
         case 0:
             return edge_number(rng);
+        // Integer arithmetic wraps around (in unsigned): an overflow here is the point, not a bug.
         case 1:
-            if (v.is_number_integer()) return v.get<int64_t>() + int64_t(rng() % 5) - 2;
+            if (v.is_number_integer())
+                return int64_t(uint64_t(v.get<int64_t>()) + uint64_t(rng() % 5) - 2);
             return v.get<double>() * 1.0001;
         case 2:
-            if (v.is_number_integer()) return v.get<int64_t>() * 2;
+            if (v.is_number_integer()) return int64_t(uint64_t(v.get<int64_t>()) << 1);
             return -v.get<double>();
         default:
             if (v.is_number_integer()) return double(v.get<int64_t>()) + 0.5;

@@ -548,6 +548,12 @@ Model from_package(const Package& package) {
                          texels * 4);
                 model.texel_cluster.resize(texels);
                 std::memcpy(model.texel_cluster.data(), s->data.data(), s->data.size());
+                // Checked here, not only by validate() at the end: cluster_texels() below
+                // indexes by these values.
+                for (int64_t t = 0; t < texels; ++t)
+                    if (model.texel_cluster[t] < 0 || model.texel_cluster[t] >= model.clusters)
+                        fail("section 'clusters': texel {} is in cluster {} of {}", t,
+                             model.texel_cluster[t], model.clusters);
             } else {
                 model.texel_cluster.assign(texels, 0);  // a prefix without it has no factors yet
             }
@@ -600,7 +606,9 @@ Model from_package(const Package& package) {
                 if (means) {
                     if (means->data.size() < (mean_at + rows) * 4)
                         fail("section 'means' is too short");
-                    std::memcpy(b.mean.data(), means->data.data() + mean_at * 4, rows * 4);
+                    // Not for 0 rows: memcpy to the null data() of an empty vector is undefined.
+                    if (rows > 0)
+                        std::memcpy(b.mean.data(), means->data.data() + mean_at * 4, rows * 4);
                     mean_at += rows;
                 }
             }
