@@ -1,7 +1,8 @@
 // The main() of the replay programs (replay_<target>): runs every file of the folders (or files)
 // named on the command line through the target's LLVMFuzzerTestOneInput, in name order, so that
 // `make test` replays each fuzz corpus and every crash reproducer in the normal build. A missing
-// folder counts as empty (a target without regressions has no fuzz/regressions/<target>/).
+// folder counts as empty (a target without regressions has no fuzz/regressions/<target>/), but
+// no input at all is a failure.
 // Anything but a normal return is a failure: the process crashes, or an exception escapes and
 // the program names the input and fails.
 #include <algorithm>
@@ -37,6 +38,11 @@ int main(int argc, char** argv) {
         }
     }
     std::sort(inputs.begin(), inputs.end());
+    if (inputs.empty()) {
+        // Every target has a seed corpus: none found means a wrong folder, not a pass.
+        std::fprintf(stderr, "replay: no inputs found in the folders given\n");
+        return 1;
+    }
     for (const fs::path& input : inputs) {
         std::ifstream in(input, std::ios::binary);
         const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),

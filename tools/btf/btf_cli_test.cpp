@@ -85,6 +85,22 @@ TEST_F(BtfCli, BadInputGivesOneLineAndNonZeroExit) {
     EXPECT_NE(r.output.find("no such direction-set file"), std::string::npos) << r.output;
 }
 
+TEST_F(BtfCli, AnHdf5FileThatCrashesLibhdf5GivesOneLine) {
+    // libhdf5 1.10 crashes reading this file's root attributes; btf reads it in a child process.
+    const fs::path damaged =
+        fs::path(BTF_SOURCE_DIR) / "fuzz/regressions/hdf5/global-heap-read-overflow.h5";
+    for (const std::string& command :
+         std::vector<std::string>{"info ", "compress --codec fmf -o " + path("x.btfpkg") + " "}) {
+        const CliResult r = run(command + damaged.string());
+        EXPECT_EQ(r.code, 1) << r.output;
+        EXPECT_NE(r.output.find("global-heap-read-overflow.h5: libhdf5 crashed ("),
+                  std::string::npos)
+            << r.output;
+        EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+        EXPECT_FALSE(fs::exists(path("x.btfpkg")));
+    }
+}
+
 // Runs `btf ARGS` in the background (stderr to `log`), waits until `ready` (a shell condition)
 // holds, then stops it, sends `signals` (TERM, INT, …) and lets it go on: the process cannot have
 // finished before the signals arrive, however fast or busy the machine. Returns its exit status;

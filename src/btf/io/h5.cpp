@@ -16,6 +16,8 @@
 #include <cstring>
 #include <exception>
 #include <fstream>
+#include <functional>
+#include <new>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <thread>
@@ -24,6 +26,7 @@
 
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
+#include "btf/util/isolate.h"
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
@@ -590,8 +593,31 @@ Handle memory_access(const Context& ctx, const std::vector<uint8_t>& image) {
     return fapl;
 }
 
+/// Runs `work` (libhdf5 calls on the input `name`) in a child process (util/isolate.h). The library
+/// lock is held across the fork, so no other thread is inside libhdf5 when the child starts. The
+/// child's copy of this thread has another thread id, to which the held lock does not belong:
+/// the child, where nothing else runs, starts from a fresh lock.
+void in_child_process(const std::function<void()>& work, const std::string& name) {
+    Lock lock;
+    run_isolated(
+        [&] {
+            new (&library_mutex()) std::recursive_mutex;
+            work();
+        },
+        name + ": libhdf5");
+}
+
+/// Opens and validates the file at `path` or, when `image` is given, the file image in memory
+/// (`path` then only names it): everything open_layout() does after its checks of the path.
+Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image);
+
 /// Opens and validates the file at `path` or, when `image` is given, the file image in memory
 /// (`path` then only names it).
+///
+/// libhdf5 trusts sizes in a file's metadata that btfkit cannot check before the call: a damaged
+/// global heap makes libhdf5 1.10 copy or read far outside its buffers while reading the (variable-
+/// length string) root attributes (fuzz/regressions/hdf5/). So the whole walk is done first in a
+/// child process, where a crash is only a failed check, and then again here.
 Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nullptr) {
     const Context ctx(path);
     std::error_code ec;
@@ -605,7 +631,12 @@ Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nul
             fail("{}: cannot open for reading: {}", ctx.name(), std::strerror(errno));
         if (!has_hdf5_signature(path)) fail("{}: not an HDF5 file (no HDF5 signature)", ctx.name());
     }
+    in_child_process([&] { read_layout(path, image); }, ctx.name());
+    return read_layout(path, image);
+}
 
+Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image) {
+    const Context ctx(path);
     Lock lock;
     Layout layout;
     const Handle fapl = image ? memory_access(ctx, *image) : file_access(ctx);
@@ -748,6 +779,16 @@ Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nul
     if (stored != n_views * n_lights)
         ctx.layout_error("dataset 'images' stores {} of its {} images (an interrupted write?)",
                          stored, n_views * n_lights);
+    // Look up every image as read_image() will, so that the child process of open_layout() walks
+    // all of the chunk index that reading can reach.
+    for (hsize_t v = 0; v < n_views; ++v)
+        for (hsize_t l = 0; l < n_lights; ++l) {
+            const hsize_t offset[5] = {v, l, 0, 0, 0};
+            hsize_t bytes = 0;
+            ctx.h5(H5Dget_chunk_storage_size(images, offset, &bytes), "cannot locate the images");
+            if (bytes == 0)
+                ctx.layout_error("dataset 'images' lacks the image of view {} light {}", v, l);
+        }
     return layout;
 }
 
@@ -963,24 +1004,45 @@ void encode(const Context& ctx, const BtfSource& source, int view, int light,
 
 }  // namespace
 
-bool probe(const fs::path& path) {
+namespace {
+
+/// What probe()'s child process throws for an HDF5 file in another layout.
+constexpr const char* kNotBtfkit = "an HDF5 file but not btfkit's";
+
+/// probe() after the signature check; run in a child process (the attribute read is the one that
+/// damaged global heaps crash).
+void probe_format(const fs::path& path) {
+    bool ours = true;
     try {
-        std::error_code ec;
-        if (!fs::is_regular_file(path, ec) || !has_hdf5_signature(path)) return false;
         const Context ctx(path);
         Lock lock;
         const Handle fapl = file_access(ctx);
         const hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
         if (id < 0) {
             H5Eclear2(H5E_DEFAULT);
-            return true;  // an HDF5 signature but unreadable: let open() say what is wrong
+            return;  // an HDF5 signature but unreadable: let open() say what is wrong
         }
         Handle file(id, H5Fclose);
         const std::optional<std::string> format =
             read_string_attribute(ctx, file, "format", "root ");
-        return format && *format == kFormatName;
+        ours = format && *format == kFormatName;
     } catch (...) {
-        return false;
+        ours = false;
+    }
+    if (!ours) throw Error(kNotBtfkit);
+}
+
+}  // namespace
+
+bool probe(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec) || !has_hdf5_signature(path)) return false;
+    try {
+        in_child_process([&] { probe_format(path); }, path.string());
+        return true;
+    } catch (const std::exception& e) {
+        // A crash (or a cancelled wait) also says "ours": open() then reports it.
+        return e.what() != std::string_view(kNotBtfkit);
     }
 }
 

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -325,7 +326,9 @@ TEST_F(H5Test, DatasetsInOtherFilesAreRefusedUnlessAllowed) {
         std::unique_ptr<BtfSource> read;
         EXPECT_NO_THROW(read = h5::open(linked));
         set_limits(saved);
-        if (read) EXPECT_NEAR(read->image(1, 2).at(3, 4, 1), known_value(1, 2, 3, 4, 1), 1e-3);
+        if (read) {
+            EXPECT_NEAR(read->image(1, 2).at(3, 4, 1), known_value(1, 2, 3, 4, 1), 1e-3);
+        }
     }
 }
 
@@ -630,6 +633,30 @@ TEST_F(H5Test, MalformedInputsFailWithClearErrors) {
     const std::string message = error_of([&] { h5::open(file("cut.h5")); });
     EXPECT_THAT(message, HasSubstr("cut.h5: cannot open HDF5 file (truncated or corrupt?)"));
     EXPECT_THAT(message, HasSubstr("truncated file"));
+}
+
+// Found by fuzzing: damaged global heaps that make libhdf5 1.10 copy or read far outside its
+// buffers while reading the root attributes. btfkit walks a file's structure in a child process
+// first, so the crash is an error naming the file.
+TEST_F(H5Test, FilesThatCrashLibhdf5AreReportedNotFatal) {
+    const fs::path folder = fs::path(BTF_SOURCE_DIR) / "fuzz/regressions/hdf5";
+    for (const char* name : {"global-heap-read-overflow.h5", "global-heap-protect-overflow.h5"}) {
+        SCOPED_TRACE(name);
+        const fs::path damaged = folder / name;
+        ASSERT_TRUE(fs::is_regular_file(damaged));
+        EXPECT_TRUE(h5::probe(damaged));  // so that open_source() reports it
+        const std::string expected = damaged.string() + ": libhdf5 crashed (";
+        EXPECT_THAT(error_of([&] { h5::open(damaged); }), HasSubstr(expected));
+        EXPECT_THAT(error_of([&] { h5::read_header(damaged); }), HasSubstr(expected));
+        std::ifstream in(damaged, std::ios::binary);
+        std::vector<uint8_t> image((std::istreambuf_iterator<char>(in)), {});
+        EXPECT_THAT(error_of([&] { h5::open_memory(image, "in-memory.h5"); }),
+                    HasSubstr("in-memory.h5: libhdf5 crashed ("));
+    }
+    // The process is intact: a valid file still opens and reads.
+    TestSource source;
+    h5::write(source, file("a.h5"));
+    EXPECT_NEAR(h5::open(file("a.h5"))->image(1, 2).at(3, 4, 1), known_value(1, 2, 3, 4, 1), 1e-3);
 }
 
 TEST_F(H5Test, CorruptCompressedImageIsReportedAtReadImage) {

@@ -23,7 +23,8 @@ double projected_integral(Fn&& d, int steps = 800) {
 }
 
 TEST(Microfacet, GgxIsNormalized) {
-    for (auto [ax, ay] : {std::pair{0.3f, 0.3f}, {0.15f, 0.5f}, {0.6f, 0.9f}}) {
+    for (const auto& alpha : {std::pair{0.3f, 0.3f}, {0.15f, 0.5f}, {0.6f, 0.9f}}) {
+        const float ax = alpha.first, ay = alpha.second;
         const double integral = projected_integral(
             [&](double x, double y, double z) {
                 return ggx_d(float(x), float(y), float(z), ax, ay);
