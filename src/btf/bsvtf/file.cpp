@@ -123,8 +123,7 @@ Bsvtf read_bsvtf(const Package& package, const std::string& what) {
                 fail("group [{}, {}, {}] is out of range", group.plane, group.first, group.count);
             groups.push_back(group);
         }
-        const int width = int(json_fields::integer_at(h, "width", 1, 1 << 16));
-        const int height = int(json_fields::integer_at(h, "height", 1, 1 << 16));
+        const auto [width, height] = json_fields::extent(h);
         if (width != out.model.width || height != out.model.height)
             fail("the tile layout disagrees with the header");
         out.layout = TileLayout(width, height,
@@ -139,21 +138,31 @@ Bsvtf read_bsvtf(const Package& package, const std::string& what) {
         const std::string u_format = h.at("u_format").get<std::string>();
         if (u_format != "f16" && u_format != "f32") fail("u_format '{}'", u_format);
         const size_t u_bytes = u_format == "f16" ? 2 : 4;
+        // A plane's groups cover its components 0, 1, … in order (as pyramid.cpp cuts them), and
+        // each group's u section holds its rows: so the components allocated below are bounded
+        // by the bytes of the file, checked before anything is allocated.
+        const size_t rows = size_t(out.model.block_rows(0, 0));
         std::vector<int> components(size_t(out.model.colour.planes()), 0);
-        for (const Group& g : groups)
-            components[size_t(g.plane)] = std::max(components[size_t(g.plane)], g.first + g.count);
+        for (size_t gi = 0; gi < groups.size(); ++gi) {
+            const Group& g = groups[gi];
+            if (g.first != components[size_t(g.plane)])
+                fail("group {} [{}, {}, {}] does not continue plane {} at component {}", gi,
+                     g.plane, g.first, g.count, g.plane, components[size_t(g.plane)]);
+            components[size_t(g.plane)] += g.count;
+            const PackageSection& u = package.at(fmt::format("u{}", gi));
+            if (u.data.size() != rows * size_t(g.count) * u_bytes)
+                fail("section '{}' holds {} bytes, expected {}", u.name, u.data.size(),
+                     rows * size_t(g.count) * u_bytes);
+        }
         for (int plane = 0; plane < out.model.colour.planes(); ++plane) {
             factor::Block& b = out.model.blocks[size_t(out.model.block_index(plane, 0, 0))];
-            b.a = factor::Matrix::Zero(out.model.block_rows(0, 0), components[size_t(plane)]);
+            b.a = factor::Matrix::Zero(int64_t(rows), components[size_t(plane)]);
             b.b.resize(0, components[size_t(plane)]);
         }
         for (size_t gi = 0; gi < groups.size(); ++gi) {
             const Group& g = groups[gi];
             factor::Block& b = out.model.blocks[size_t(out.model.block_index(g.plane, 0, 0))];
             const PackageSection& u = package.at(fmt::format("u{}", gi));
-            if (u.data.size() != size_t(b.a.rows()) * size_t(g.count) * u_bytes)
-                fail("section '{}' holds {} bytes, expected {}", u.name, u.data.size(),
-                     size_t(b.a.rows()) * size_t(g.count) * u_bytes);
             const uint8_t* v = u.data.data();
             for (int k = 0; k < g.count; ++k)
                 for (int64_t r = 0; r < b.a.rows(); ++r, v += u_bytes) {

@@ -98,5 +98,23 @@ TEST(BsvtfFile, ErrorsNameTheProblem) {
               std::string::npos);
 }
 
+TEST(BsvtfFile, GroupsMustContinueTheirPlaneBeforeAnythingIsAllocated) {
+    // A group's `first` of 4096 used to zero-fill rows × 4097 factors before any section was
+    // checked (terabytes for a crafted direction set).
+    const Fixture f = make("f16");
+    const Package written = make_bsvtf(f.fmf, f.model, f.pyramid, f.encoded, 0.02);
+    ASSERT_GE(written.header["bsvtf"]["groups"].size(), 2u);
+    Package far = written;
+    far.header["bsvtf"]["groups"][1][1] = 4096;
+    EXPECT_NE(test::error_of([&] {
+                  read_bsvtf(far, "m.bsvtf");
+              }).find("m.bsvtf: group 1 [0, 4096, 3] does not continue plane 0 at component 4"),
+              std::string::npos);
+    Package overlap = written;
+    overlap.header["bsvtf"]["groups"][1][1] = 2;
+    EXPECT_NE(test::error_of([&] { read_bsvtf(overlap, "m.bsvtf"); }).find("does not continue"),
+              std::string::npos);
+}
+
 }  // namespace
 }  // namespace btf::bsvtf

@@ -146,7 +146,7 @@ TEST(HostilePackage, AnMlvqExtentLargerThanItsIndexSectionsIsRefusedBeforeAlloca
         --p.declared_sections;
     });
     EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("section 'P6.1'"),
-                         HasSubstr("too few for the 60000 texels of its level")));
+                         HasSubstr("is too short for the 60000 entries of P6 level 1")));
 }
 
 TEST(HostilePackage, UndeclaredSectionsAndTrailingBytesAreRefused) {
@@ -176,16 +176,25 @@ TEST(HostilePackage, DirectionsMustLieOnTheHemisphere) {
 }
 
 TEST(HostilePackage, DeclaredExtentsAndSectionsRespectTheLimits) {
-    const Limits saved = limits();
-    Limits small = saved;
-    small.image_pixels = 100;  // the 16² test material has 256 texels
-    set_limits(small);
-    const std::string e = open_error("fmf", [](Package&) {});
-    Limits tiny_alloc = saved;
-    tiny_alloc.alloc_bytes = 64;
-    set_limits(tiny_alloc);
-    const std::string e2 = open_error("fmf", [](Package&) {});
-    set_limits(saved);
+    test::TempFolder temp;
+    const std::filesystem::path file = temp.path() / "crafted.btfpkg";
+    Package package = encoded("fmf");
+    const std::vector<uint8_t> bytes = encode_package(package, {0});
+    test::write_file(file, std::string(bytes.begin(), bytes.end()));
+    std::string e, e2;
+    {
+        // The 16² test material has 256 texels.
+        const test::ScopedLimits small([](Limits& l) { l.image_pixels = 100; });
+        e = error_of([&] { open_material(file); });
+    }
+    {
+        const test::ScopedLimits tiny_alloc([](Limits& l) { l.alloc_bytes = 64; });
+        e2 = error_of([&] { open_material(file); });
+        // The writer applies the reader's limit: what it writes can be read.
+        EXPECT_THAT(
+            error_of([&] { encode_package(package, {0}); }),
+            AllOf(HasSubstr("section 'tables' needs"), HasSubstr("over the limit of 64 B")));
+    }
     EXPECT_THAT(
         e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("16×16"),
                  HasSubstr("exceeds the limit of 100 texels"), HasSubstr("--max-image-pixels")));

@@ -115,8 +115,9 @@ void check_jpeg_file(const std::filesystem::path& path) {
 // SOF of 65500² asks libjpeg for tens of GB right there). Set from btfkit's limit before every
 // open, since the limit may change: the largest image, with four channels of 32-bit floats.
 void apply_decoder_limits() {
-    const int64_t mb = std::max<int64_t>(1, (limits().image_pixels * 16) >> 20);
-    OIIO::attribute("limits:imagesize_MB", int(std::min<int64_t>(mb, INT32_MAX)));
+    const uint64_t bytes = checked_bytes(uint64_t(limits().image_pixels), 16).value_or(UINT64_MAX);
+    OIIO::attribute("limits:imagesize_MB",
+                    int(std::clamp<uint64_t>(bytes >> 20, 1, uint64_t(INT32_MAX))));
 }
 
 // sRGB → linear for every 8-bit code value: a table instead of a pow() per value.
@@ -142,8 +143,10 @@ Image read_from(OIIO::ImageInput& input, const std::string& name, Encoding encod
     check_image_size(spec.width, spec.height, name);
     if (spec.nchannels > 64) fail("{}: image has {} channels", name, spec.nchannels);
     // The decode buffer (floats, every channel) is the largest allocation.
-    check_alloc(uint64_t(spec.width) * uint64_t(spec.height) * uint64_t(spec.nchannels) * 4, name,
-                "decoding the image");
+    check_alloc(
+        checked_bytes(uint64_t(spec.width) * uint64_t(spec.height), uint64_t(spec.nchannels) * 4)
+            .value_or(UINT64_MAX),
+        name, "decoding the image");
     const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT ||
                           spec.format.basetype == OIIO::TypeDesc::HALF ||
                           spec.format.basetype == OIIO::TypeDesc::DOUBLE;
@@ -238,7 +241,9 @@ std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size
         if (error) *error = OIIO::geterror();
         return std::nullopt;
     }
-    return std::pair<int, int>{input->spec().width, input->spec().height};
+    const OIIO::ImageSpec& spec = input->spec();
+    check_image_size(spec.width, spec.height, name);
+    return std::pair<int, int>{spec.width, spec.height};
 }
 
 namespace {

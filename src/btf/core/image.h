@@ -68,7 +68,8 @@ Image read_image_memory(const void* data, size_t size, const std::string& name,
                         Encoding encoding = Encoding::kLinear);
 /// Width and height from an image header held in memory (the format is chosen by the extension of
 /// `name`); `data` may be just the start of the file. Returns nothing if the header cannot be
-/// parsed from these bytes, with OpenImageIO's reason in `error` when given.
+/// parsed from these bytes, with OpenImageIO's reason in `error` when given. Throws btf::Error
+/// naming `name` for a header that declares no texels or more than limits().image_pixels.
 std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size_t size,
                                                           const std::string& name,
                                                           std::string* error = nullptr);

@@ -598,6 +598,7 @@ Handle memory_access(const Context& ctx, const std::vector<uint8_t>& image) {
 /// child's copy of this thread has another thread id, to which the held lock does not belong:
 /// the child, where nothing else runs, starts from a fresh lock.
 void in_child_process(const std::function<void()>& work, const std::string& name) {
+    limits();  // read the environment here: after that, limits() takes no lock (in the child too)
     Lock lock;
     run_isolated(
         [&] {

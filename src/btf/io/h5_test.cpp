@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "btf/testing/support.h"
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
@@ -313,19 +314,14 @@ TEST_F(H5Test, DatasetsInOtherFilesAreRefusedUnlessAllowed) {
                     AllOf(HasSubstr(linked.filename().string()), HasSubstr("dataset 'images'"),
                           HasSubstr(virtual_dataset ? "virtual dataset" : "external link"),
                           HasSubstr("--allow-hdf5-external")));
-        const Limits saved = limits();
-        Limits allowed = saved;
-        allowed.allow_hdf5_external = true;
-        set_limits(allowed);
+        const test::ScopedLimits allowed([](Limits& l) { l.allow_hdf5_external = true; });
         if (virtual_dataset) {
             // Allowed, a virtual dataset still fails the layout (one chunk per image).
             EXPECT_THAT(error_of([&] { h5::open(linked); }), HasSubstr("is not chunked"));
-            set_limits(saved);
             continue;
         }
         std::unique_ptr<BtfSource> read;
         EXPECT_NO_THROW(read = h5::open(linked));
-        set_limits(saved);
         if (read) {
             EXPECT_NEAR(read->image(1, 2).at(3, 4, 1), known_value(1, 2, 3, 4, 1), 1e-3);
         }

@@ -21,8 +21,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// No single image of a BTF comes near this; a larger declared size means a corrupt directory.
-constexpr uint64_t kMaxImageFileBytes = uint64_t(1) << 31;
 // Files and archive entries are read in pieces of this size, checking for cancellation between.
 constexpr uint64_t kReadChunk = uint64_t(1) << 20;
 
@@ -68,8 +66,7 @@ class FolderFiles final : public ImageFiles {
         std::ifstream in(path, std::ios::binary);
         if (!in) fail("{}: cannot open file", path.string());
         const uint64_t n = std::min(max_bytes, m_sizes[i]);
-        if (n > kMaxImageFileBytes)
-            fail("{}: file of {} bytes is too large for one image", path.string(), n);
+        check_alloc(n, path.string(), "reading the image file");
         std::vector<unsigned char> bytes(n);
         uint64_t done = 0;
         while (done < n) {
@@ -170,8 +167,7 @@ class ZipFiles final : public ImageFiles {
 
     std::vector<unsigned char> read(int i, uint64_t max_bytes) const override {
         const uint64_t n = std::min(max_bytes, m_sizes[i]);
-        if (n > kMaxImageFileBytes)
-            fail("{}: entry of {} bytes is too large for one image", label(i), n);
+        check_alloc(n, label(i), "reading the image file");
         std::vector<unsigned char> bytes(n);
         // libzip handles are not thread-safe: only the reading of the (compressed) bytes is
         // serialized; callers decode outside the lock.
@@ -245,8 +241,6 @@ std::pair<int, int> ImageFiles::image_size(int i) const {
     for (;;) {
         const std::vector<unsigned char> bytes = read(i, prefix);
         if (auto size = read_image_size_memory(bytes.data(), bytes.size(), label(i), &error)) {
-            if (size->first <= 0 || size->second <= 0) fail("{}: image has no pixels", label(i));
-            check_image_size(size->first, size->second, label(i));
             if (file_size(i) > max_image_file_bytes(size->first, size->second))
                 fail(
                     "{}: file of {} bytes for a {}×{} image, more than any encoding of it needs "
@@ -293,6 +287,8 @@ ImageSetSource::ImageSetSource(std::unique_ptr<ImageFiles> files, Sampling sampl
     parallel_for(0, n, [&](int64_t k) {
         try {
             sizes[k] = m_files->image_size(m_table[k]);
+        } catch (const Cancelled&) {
+            throw;  // stays a cancellation (exit 130), not an error about a file
         } catch (const Error& e) {
             errors[k] = e.what();
         }

@@ -24,10 +24,6 @@ using json = nlohmann::json;
 namespace {
 
 constexpr uint8_t kMagic[8] = {0x89, 'B', 'T', 'F', 'P', 'K', 'G', '\n'};
-/// Largest decoded section a reader accepts: checked before allocating, so that a damaged size
-/// field cannot ask for terabytes. The writer refuses larger sections, so every file it writes
-/// is readable.
-constexpr uint64_t kMaxSectionBytes = uint64_t{1} << 34;
 /// Section entry fields, in the order nlohmann::json writes them (alphabetical).
 constexpr const char* kSectionFields[] = {"coding", "name", "offset", "raw_size", "size", "xxh64"};
 
@@ -103,9 +99,9 @@ std::vector<uint8_t> prepare(Package& package, const PackageWriteOptions& option
         if (s.name.empty()) fail("{}: a section has an empty name", what);
         if (!names.insert(s.name).second)
             fail("{}: two sections are named '{}' (names must be unique)", what, s.name);
-        if (s.data.size() > kMaxSectionBytes)
-            fail("{}: section '{}' holds {} bytes, more than the limit of {}", what, s.name,
-                 s.data.size(), kMaxSectionBytes);
+        // The reader's limit on a decoded section (util/limits.h): what is written can be read
+        // under the same limits.
+        check_alloc(s.data.size(), what, fmt::format("section '{}'", s.name));
     }
 
     const int64_t n = static_cast<int64_t>(package.sections.size());
@@ -268,9 +264,9 @@ std::vector<Entry> read_table(const json& header, uint32_t version, const std::s
                 "needs for {} decoded bytes",
                 what, entry.name, entry.size, entry.raw_size);
         // A zstd block decodes to at most 128 KiB and takes at least 4 bytes (an RLE block), so
-        // a frame of `size` bytes cannot hold more than size * 2^15 bytes (size is bounded by
-        // the check above, so the shift cannot overflow).
-        if (entry.coding == SectionCoding::kZstd && entry.raw_size > entry.size << 15)
+        // a frame of `size` bytes cannot hold more than size * 2^15 bytes.
+        if (entry.coding == SectionCoding::kZstd &&
+            entry.raw_size > checked_bytes(entry.size, uint64_t{1} << 15).value_or(UINT64_MAX))
             fail(
                 "{}: inconsistent header: zstd section '{}' declares {} decoded bytes, more "
                 "than its {} stored bytes can hold",

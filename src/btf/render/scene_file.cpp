@@ -201,6 +201,8 @@ class SceneReader {
                 if (it == m_materials.end()) {
                     try {
                         it = m_materials.emplace(file.string(), open_material_file(file)).first;
+                    } catch (const Cancelled&) {
+                        throw;
                     } catch (const Error& e) {
                         n.fail(e.what());
                     }
@@ -313,6 +315,8 @@ class SceneReader {
                 try {
                     map = std::make_shared<const EnvironmentMap>(EnvironmentMap::from_file(
                         resolve(n.required_string("file")), scale, rotation));
+                } catch (const Cancelled&) {
+                    throw;
                 } catch (const Error& e) {
                     n.fail(e.what());
                 }

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <tuple>
 
 #include "btf/io/package.h"
 #include "btf/quality/plot.h"
@@ -120,13 +121,9 @@ CatalogEntry describe_package(const fs::path& path) {
         // from (bsvtf/file.h).
         const nlohmann::json& material =
             entry.codec == "bsvtf" ? package.header.at("source") : package.header;
-        entry.width = int(json_fields::integer_at(material, "width", 1, 1 << 16));
-        entry.height = int(json_fields::integer_at(material, "height", 1, 1 << 16));
-        check_image_size(entry.width, entry.height, "extent");
+        std::tie(entry.width, entry.height) = json_fields::extent(material);
         entry.views = int(material.at("views").at("theta").size());
         entry.lights = int(material.at("lights").at("theta").size());
-        check(entry.width > 0 && entry.height > 0, "extent {}x{} texels is empty", entry.width,
-              entry.height);
         check(entry.views > 0 && entry.lights > 0, "sampling of {} views x {} lights is empty",
               entry.views, entry.lights);
         // The reader has validated the table: offsets are contiguous from 0.

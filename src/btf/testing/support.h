@@ -12,6 +12,7 @@
 #include <string>
 
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 
 namespace btf::test {
 
@@ -53,6 +54,24 @@ std::string error_of(Fn&& fn) {
     ADD_FAILURE() << "expected a btf::Error";
     return {};
 }
+
+/// The process's limits (util/limits.h) changed for one scope: `edit` changes a copy of those in
+/// force, and the old ones come back when the scope ends, also when a failed check throws.
+class ScopedLimits {
+  public:
+    template <typename Edit>
+    explicit ScopedLimits(Edit&& edit) : m_saved(limits()) {
+        Limits changed = m_saved;
+        edit(changed);
+        set_limits(changed);
+    }
+    ~ScopedLimits() { set_limits(m_saved); }
+    ScopedLimits(const ScopedLimits&) = delete;
+    ScopedLimits& operator=(const ScopedLimits&) = delete;
+
+  private:
+    Limits m_saved;
+};
 
 /// The bytes of a file ("" when it cannot be read).
 inline std::string read_file(const std::filesystem::path& path) {

@@ -18,8 +18,10 @@ namespace {
 // cancellation that a library call does not notice) can still leave no partial output.
 std::mutex g_live_mutex;
 std::multiset<fs::path>& live() {
-    static std::multiset<fs::path> paths;
-    return paths;
+    // Never destroyed: the CLI's watchdog thread may remove the temporaries while the main thread
+    // is already running the destructors of static objects at exit.
+    static auto* paths = new std::multiset<fs::path>;
+    return *paths;
 }
 void remember(const fs::path& path) {
     std::lock_guard lock(g_live_mutex);

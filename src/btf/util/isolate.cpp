@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -33,13 +34,19 @@ void write_all(int fd, const char* data, size_t size) {
     }
 }
 
-[[noreturn]] void run_child(const std::function<void()>& work, int report, pid_t parent) {
+constexpr int kChildDefaultSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+
+/// Starts with every signal blocked (run_isolated() blocks them around the fork).
+[[noreturn]] void run_child(const std::function<void()>& work, int report, pid_t parent,
+                            const sigset_t& unblocked) {
     // Die with the parent (its watchdog may end it without unwinding to the wait below).
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(1);
     // A terminal's ^C reaches the whole process group: the child just dies, and the parent,
-    // which got the same signal, handles it. The parent's handlers must not run here.
-    for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) std::signal(sig, SIG_DFL);
+    // which got the same signal, handles it. The parent's handlers (the CLI's cancellation) must
+    // not run here, so signals stay blocked until they are reset.
+    for (int sig : kChildDefaultSignals) std::signal(sig, SIG_DFL);
+    ::pthread_sigmask(SIG_SETMASK, &unblocked, nullptr);
     if (const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC); null >= 0) ::dup2(null, 2);
 
     std::string message(1, kReturned);
@@ -72,16 +79,20 @@ void run_isolated(const std::function<void()>& work, const std::string& what,
     if (::pipe2(fds, O_CLOEXEC) != 0)
         fail("{} cannot be run in a process of its own: {}", what, std::strerror(errno));
     const pid_t parent = ::getpid();
+    sigset_t all, before;
+    ::sigfillset(&all);
+    ::pthread_sigmask(SIG_BLOCK, &all, &before);
     const pid_t child = ::fork();
-    if (child < 0) {
-        const int error = errno;
-        ::close(fds[0]);
-        ::close(fds[1]);
-        fail("{} cannot be run in a process of its own: {}", what, std::strerror(error));
-    }
     if (child == 0) {
         ::close(fds[0]);
-        run_child(work, fds[1], parent);
+        run_child(work, fds[1], parent, before);
+    }
+    const int fork_error = errno;
+    ::pthread_sigmask(SIG_SETMASK, &before, nullptr);
+    if (child < 0) {
+        ::close(fds[0]);
+        ::close(fds[1]);
+        fail("{} cannot be run in a process of its own: {}", what, std::strerror(fork_error));
     }
     ::close(fds[1]);
     const int report = fds[0];

@@ -24,6 +24,9 @@ struct IsolateOptions {
 /// The child only runs `work` and leaves with _exit(): no atexit handlers, no destructors of
 /// globals, no flushing of stdio buffers inherited from the parent. Its standard error goes to
 /// /dev/null (a library's own crash report would otherwise interleave with the parent's output).
+/// SIGINT, SIGTERM, SIGHUP and SIGQUIT take their default action there (signals stay blocked from
+/// the fork until then), so a ^C to the process group ends the child without running the
+/// parent's handlers; it dies with its parent, too.
 /// `work` must not need other threads of the parent (the child has only the calling thread) and
 /// must not take locks that another thread may hold at the time of the fork; hold any such lock
 /// around the call, and let `work` start by re-creating it: the child's thread has another

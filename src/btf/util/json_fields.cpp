@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 
 namespace btf::json_fields {
 
@@ -71,6 +72,13 @@ void only_keys(const nlohmann::json& value, std::string_view name,
     for (const auto& item : value.items())
         if (std::find(known.begin(), known.end(), item.key()) == known.end())
             fail("'{}' has an unknown field '{}'", name, item.key());
+}
+
+std::pair<int, int> extent(const nlohmann::json& object) {
+    const int width = int(integer_at(object, "width", 1, 1 << 16));
+    const int height = int(integer_at(object, "height", 1, 1 << 16));
+    check_image_size(width, height, "extent");
+    return {width, height};
 }
 
 }  // namespace btf::json_fields

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace btf::json_fields {
@@ -25,6 +26,9 @@ double number_at(const nlohmann::json& object, std::string_view key, double lo, 
 /// An array of at most `max_count` integers, each in [lo, hi].
 std::vector<int> integers(const nlohmann::json& value, std::string_view name, int64_t lo,
                           int64_t hi, size_t max_count);
+/// A header's image extent: the integers "width" and "height" of `object`, each 1 to 65536 and
+/// together within limits().image_pixels ("extent: image of W×H texels exceeds the limit …").
+std::pair<int, int> extent(const nlohmann::json& object);
 /// `value` must be an object with no keys other than `known`: an unknown key is an error, so a
 /// misspelt or foreign field is never silently ignored.
 void only_keys(const nlohmann::json& value, std::string_view name,

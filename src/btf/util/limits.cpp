@@ -1,5 +1,6 @@
 #include "btf/util/limits.h"
 
+#include <atomic>
 #include <charconv>
 #include <cstdlib>
 #include <mutex>
@@ -43,21 +44,35 @@ Limits from_environment() {
     return l;
 }
 
-std::mutex g_mutex;
-std::optional<Limits> g_limits;
+// Read without a lock once set: a forked child (util/isolate.h) reads them, and a lock held by
+// another thread of the parent at the fork would never be released there.
+std::mutex g_set_mutex;  // serializes the first read of the environment and set_limits()
+std::atomic<bool> g_ready{false};
+std::atomic<int64_t> g_image_pixels{0};
+std::atomic<uint64_t> g_alloc_bytes{0};
+std::atomic<bool> g_allow_hdf5_external{false};
+
+void store(const Limits& l) {
+    g_image_pixels.store(l.image_pixels);
+    g_alloc_bytes.store(l.alloc_bytes);
+    g_allow_hdf5_external.store(l.allow_hdf5_external);
+    g_ready.store(true);
+}
 
 }  // namespace
 
 Limits limits() {
-    std::lock_guard lock(g_mutex);
-    if (!g_limits) g_limits = from_environment();
-    return *g_limits;
+    if (!g_ready.load()) {
+        std::lock_guard lock(g_set_mutex);
+        if (!g_ready.load()) store(from_environment());
+    }
+    return {g_image_pixels.load(), g_alloc_bytes.load(), g_allow_hdf5_external.load()};
 }
 
 void set_limits(const Limits& l) {
     if (l.image_pixels <= 0 || l.alloc_bytes == 0) fail("limits must be positive");
-    std::lock_guard lock(g_mutex);
-    g_limits = l;
+    std::lock_guard lock(g_set_mutex);
+    store(l);
 }
 
 void check_image_size(int64_t width, int64_t height, std::string_view what) {

@@ -33,7 +33,8 @@ struct Limits {
 };
 
 /// The limits in force: the defaults, replaced by the environment variables on first use, and
-/// by set_limits(). Thread-safe to read.
+/// by set_limits(). Thread-safe; after the first call it takes no lock (so a forked child may
+/// call it).
 Limits limits();
 /// Replaces the limits for the whole process (the CLI's options). Throws btf::Error for a zero.
 void set_limits(const Limits& limits);

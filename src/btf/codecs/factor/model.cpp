@@ -501,9 +501,7 @@ Model from_package(const Package& package) {
     return read_package_fields(what, [&] {
         const auto& h = package.header;
         Model model;
-        model.width = int(json_fields::integer_at(h, "width", 1, 1 << 16));
-        model.height = int(json_fields::integer_at(h, "height", 1, 1 << 16));
-        check_image_size(model.width, model.height, "extent");
+        std::tie(model.width, model.height) = json_fields::extent(h);
         model.sampling.views = directions_from_json(h.at("views"));
         model.sampling.lights = directions_from_json(h.at("lights"));
         model.hdr = h.value("hdr", false);
@@ -521,10 +519,9 @@ Model from_package(const Package& package) {
         model.clusters =
             int(json_fields::integer_at(m, "clusters", 1, int64_t(model.width) * model.height));
         model.levels = int(json_fields::integer_or(m, "levels", 1, 1, 16));
-        if (model.levels < 1 || model.levels > 16 ||
-            (model.levels > 1 &&
-             (model.clusters != 1 || model.width % (1 << (model.levels - 1)) != 0 ||
-              model.height % (1 << (model.levels - 1)) != 0)))
+        if (model.levels > 1 &&
+            (model.clusters != 1 || model.width % (1 << (model.levels - 1)) != 0 ||
+             model.height % (1 << (model.levels - 1)) != 0))
             fail("{} spatial levels for {}×{} texels in {} clusters", model.levels, model.width,
                  model.height, model.clusters);
         if (m.contains("angular_levels")) {
@@ -585,12 +582,6 @@ Model from_package(const Package& package) {
             b.angular =
                 int(json_fields::integer_or(bj, "angular", 0, 0, model.angular_count() - 1));
             declared[i] = int(json_fields::integer_at(bj, "components", 0, 4096));
-            if (b.plane < 0 || b.plane >= planes || b.group < 0 ||
-                b.group >= static_cast<int>(model.groups.size()) || b.cluster < 0 ||
-                b.cluster >= model.clusters || b.level < 0 || b.level >= model.levels ||
-                b.angular < 0 || b.angular >= model.angular_count() || declared[i] < 0 ||
-                declared[i] > 4096)
-                fail("block {} is out of range", i);
         }
         const auto texel_lists = model.cluster_texels();
         const PackageSection* means = package.find("means");

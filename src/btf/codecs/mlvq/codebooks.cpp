@@ -262,13 +262,8 @@ struct Logarithmic {
     }
     nlohmann::json json() const { return {{"log_lo", lo}, {"log_hi", hi}, {"bits", bits}}; }
     static Logarithmic from(const nlohmann::json& j) {
-        Logarithmic q{json_fields::number_at(j, "log_lo", -1e30, 1e30),
-                      json_fields::number_at(j, "log_hi", -1e30, 1e30),
-                      int(json_fields::integer_at(j, "bits", 8, 16))};
-        if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
-        if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
-            fail("quantization range [{}, {}]", q.lo, q.hi);
-        return q;
+        const QuantizerFields f = quantizer_fields(j, "log_lo", "log_hi");
+        return {f.lo, f.hi, f.bits};
     }
 };
 
@@ -481,10 +476,12 @@ std::vector<IndexScale> read_texel_index(const Package& package, const nlohmann:
         const uint64_t step = uint64_t(1) << (levels - 1);
         const uint64_t entries =
             ((uint64_t(width) + step - 1) / step) * ((uint64_t(height) + step - 1) / step);
-        if (coarsest->data.size() * 8 < entries * uint64_t(bits + q.bits))
-            fail("section '{}' holds {} bytes, too few for the {} texels of its level",
-                 coarsest->name, coarsest->data.size(), entries);
+        BitReader(coarsest->data, coarsest->name)
+            .reserve(entries, bits + q.bits, sizeof(IndexScale),
+                     fmt::format("P6 level {}", levels - 1));
     }
+    check_alloc(uint64_t(width) * uint64_t(height) * sizeof(IndexScale), prefix + "P6",
+                "the texel index");
     std::vector<IndexScale> p6(size_t(width) * height);
     int finest = levels;  // the finest level present
     for (int level = levels - 1; level >= 0; --level) {

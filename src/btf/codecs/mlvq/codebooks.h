@@ -107,6 +107,22 @@ struct TexelIndex {
     std::vector<IndexScale> p6;
 };
 
+/// A quantizer's header fields: its range [lo, hi] under the keys given (finite numbers, lo ≤ hi)
+/// and its `bits`, 8 or 16.
+struct QuantizerFields {
+    double lo = 0, hi = 0;
+    int bits = 8;
+};
+inline QuantizerFields quantizer_fields(const nlohmann::json& j, std::string_view lo_key,
+                                        std::string_view hi_key) {
+    const QuantizerFields q{json_fields::number_at(j, lo_key, -1e30, 1e30),
+                            json_fields::number_at(j, hi_key, -1e30, 1e30),
+                            int(json_fields::integer_at(j, "bits", 8, 16))};
+    if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
+    if (q.hi < q.lo) fail("quantization range [{}, {}]", q.lo, q.hi);
+    return q;
+}
+
 /// Linear scalar quantization to `bits` bits over [lo, hi] (§4.5): how a package stores P1 and C
 /// values, and the codes the evaluator keeps for C.
 struct LinearQuantizer {
@@ -132,13 +148,8 @@ struct LinearQuantizer {
     }
     nlohmann::json json() const { return {{"lo", lo}, {"hi", hi}, {"bits", bits}}; }
     static LinearQuantizer from(const nlohmann::json& j) {
-        LinearQuantizer q{float(json_fields::number_at(j, "lo", -1e30, 1e30)),
-                          float(json_fields::number_at(j, "hi", -1e30, 1e30)),
-                          int(json_fields::integer_at(j, "bits", 8, 16))};
-        if (q.bits != 8 && q.bits != 16) fail("quantization with {} bits", q.bits);
-        if (!std::isfinite(q.lo) || !std::isfinite(q.hi) || q.hi < q.lo)
-            fail("quantization range [{}, {}]", q.lo, q.hi);
-        return q;
+        const QuantizerFields f = quantizer_fields(j, "lo", "hi");
+        return {float(f.lo), float(f.hi), f.bits};
     }
 };
 

@@ -44,6 +44,7 @@
 #include <cmath>
 #include <limits>
 #include <set>
+#include <tuple>
 
 #include "btf/codecs/factor/model.h"
 #include "btf/core/btf_lookup.h"
@@ -554,9 +555,7 @@ std::vector<std::unique_ptr<MlvqMaterial>> open_all(const Package& package) {
         for (const nlohmann::json& m : list) {
             TexelIndex index;
             index.name = m.at("name").get<std::string>();
-            index.width = int(json_fields::integer_at(m, "width", 1, 1 << 16));
-            index.height = int(json_fields::integer_at(m, "height", 1, 1 << 16));
-            check_image_size(index.width, index.height, "extent");
+            std::tie(index.width, index.height) = json_fields::extent(m);
             index.sampling.views = factor::directions_from_json(m.at("views"));
             index.sampling.lights = factor::directions_from_json(m.at("lights"));
             index.hdr = m.value("hdr", false);
