@@ -11,9 +11,9 @@ constexpr int kWidth = 7, kHeight = 5;
 
 // A deterministic, non-smooth value per (texel, view, light), so that any mix-up shows.
 Rgb texel_value(int x, int y, int view, int light) {
-    const uint32_t h = static_cast<uint32_t>(x * 73856093) ^ static_cast<uint32_t>(y * 19349663) ^
-                       static_cast<uint32_t>(view * 83492791) ^
-                       static_cast<uint32_t>(light * 2654435761u);
+    // Unsigned arithmetic: the products wrap (a signed one would overflow).
+    const uint32_t h = uint32_t(x) * 73856093u ^ uint32_t(y) * 19349663u ^
+                       uint32_t(view) * 83492791u ^ uint32_t(light) * 2654435761u;
     return {float(h % 1000) / 1000.0f, float((h / 1000) % 1000) / 1000.0f,
             float((h / 1000000) % 1000) / 1000.0f};
 }

@@ -16,14 +16,6 @@
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
-// clang (before 17) reports AddressSanitizer through __has_feature, GCC through
-// __SANITIZE_ADDRESS__.
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define BTF_TEST_ASAN 1
-#endif
-#endif
-
 namespace btf {
 namespace {
 
@@ -592,7 +584,7 @@ TEST(Ubo2003Hostile, ProgressiveJpegsOverTheLimitAreRefusedBeforeTheDecoderAlloc
     // regression fails this test instead of exhausting the machine.
     if (!fs::is_directory(kRealView))
         GTEST_SKIP() << "real UBO2003 view not found at " << kRealView;
-#if defined(__SANITIZE_ADDRESS__) || defined(BTF_TEST_ASAN)
+#if BTF_TEST_ASAN
     // The normal build runs it: AddressSanitizer's shadow memory alone needs terabytes of address
     // space, so under an address-space cap its process cannot even start (make test-sanitize).
     GTEST_SKIP() << "an address-space cap and AddressSanitizer exclude each other";

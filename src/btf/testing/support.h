@@ -14,6 +14,20 @@
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
 
+// 1 in a build with AddressSanitizer (GCC says so by __SANITIZE_ADDRESS__, clang before 17 only
+// through __has_feature): tests that cap a process's memory skip themselves there, since ASan's
+// shadow memory and allocator do not work under such caps.
+#if defined(__SANITIZE_ADDRESS__)
+#define BTF_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define BTF_TEST_ASAN 1
+#endif
+#endif
+#ifndef BTF_TEST_ASAN
+#define BTF_TEST_ASAN 0
+#endif
+
 namespace btf::test {
 
 /// A new empty folder under GoogleTest's temporary folder, removed with everything in it when

@@ -292,6 +292,11 @@ int64_t data_bytes() {
 // mappings (RLIMIT_DATA) at what it has mapped already (libraries' data, about 240 MB) plus
 // 384 MB, shows that the cap is real by failing to allocate the raw size, then factorizes.
 TEST(Fmf, CompressesABtfLargerThanItsMemoryCap) {
+#if BTF_TEST_ASAN
+    // The normal build runs it: AddressSanitizer's allocator reports running out of memory
+    // under the cap instead of throwing std::bad_alloc (make test-sanitize).
+    GTEST_SKIP() << "a data-size cap and AddressSanitizer exclude each other";
+#endif
     const pid_t pid = fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
