@@ -15,7 +15,8 @@ namespace btf::quality {
 
 namespace {
 
-double percentile(std::vector<float> values, double q) {
+/// The value with floor(q × n) values below it (report.cpp rounds the rank to the nearest).
+double lower_percentile(std::vector<float> values, double q) {
     if (values.empty()) return 0;
     const size_t k = std::min(values.size() - 1, size_t(q * double(values.size())));
     std::nth_element(values.begin(), values.begin() + ptrdiff_t(k), values.end());
@@ -66,11 +67,11 @@ RenderComparison compare_displays(const Image& ta, const Image& tb, double heat_
     double sum = 0;
     for (float d : de) sum += d;
     r.de2000_mean = n ? sum / double(n) : 0;
-    r.de2000_p95 = percentile(de, 0.95);
+    r.de2000_p95 = lower_percentile(de, 0.95);
     r.ssim = mssim(ya.data(), yb.data(), ta.width(), ta.height());
     const double mse = n ? squared / (3.0 * double(n)) : 0;
     r.psnr = mse > 0 ? 10 * std::log10(1 / mse) : INFINITY;
-    r.heat_max = heat_max > 0 ? heat_max : nice_ceil(std::max(1.0, percentile(de, 0.99)));
+    r.heat_max = heat_max > 0 ? heat_max : nice_ceil(std::max(1.0, lower_percentile(de, 0.99)));
     r.heat_map = quality::heat_map(de, ta.width(), ta.height(), r.heat_max);
     r.de2000 = std::move(de);
     return r;

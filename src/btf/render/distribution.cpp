@@ -10,9 +10,6 @@ namespace btf::render {
 
 namespace {
 
-// The largest double below 1: ξ and sampled points are kept strictly inside [0, 1).
-constexpr double kOneMinusEpsilon = 0x1.fffffffffffffp-1;
-
 std::vector<double> checked_weights(std::span<const double> weights, const char* what) {
     check(!weights.empty(), "{}: no weights", what);
     check(weights.size() <= size_t(INT_MAX), "{}: {} weights (at most {} are supported)", what,

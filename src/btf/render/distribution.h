@@ -16,6 +16,10 @@
 
 namespace btf::render {
 
+/// The largest double below 1: keeps ξ, sampled points and angles mapped to [0, 1) strictly
+/// inside it when rounding would reach 1.
+inline constexpr double kOneMinusEpsilon = 0x1.fffffffffffffp-1;
+
 /// Piecewise-constant density over [0,1) from n weights: bin i covers [i/n, (i+1)/n) and has
 /// density w_i / (Σ w / n). If every weight is 0 the distribution is uniform (density 1) while
 /// integral() still reports 0, so callers can tell an empty function from a flat one.

@@ -11,10 +11,8 @@ namespace btf::render {
 namespace {
 
 constexpr double kTwoPi = 2 * kPi;
-// The largest double below 1: keeps u inside [0, 1) when 2π rounds φ up.
-constexpr double kOneMinusEpsilon = 0x1.fffffffffffffp-1;
-
-double luminance(const Rgb& c) {
+// Relative luminance in double precision (core's luminance() is float), Rec. 709 weights.
+double luminance_double(const Rgb& c) {
     return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b;
 }
 
@@ -58,7 +56,7 @@ std::vector<double> sampling_weights(const Image& image) {
     const int w = image.width(), h = image.height();
     std::vector<double> lum(size_t(w) * h), blurred_u(size_t(w) * h), weights(size_t(w) * h);
     for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) lum[size_t(y) * w + x] = luminance(image.rgb(x, y));
+        for (int x = 0; x < w; ++x) lum[size_t(y) * w + x] = luminance_double(image.rgb(x, y));
     for (int y = 0; y < h; ++y) {
         const double* row = &lum[size_t(y) * w];
         for (int x = 0; x < w; ++x) {
@@ -184,7 +182,7 @@ Image EnvironmentMap::make_sky(int width, int height, const Vec3& sun_direction,
           "make_sky: sun radius {} degrees (must be in (0, 90])", options.sun_radius_degrees);
     check(options.sun_fraction >= 0 && options.sun_fraction < 1,
           "make_sky: sun fraction {} (must be in [0, 1))", options.sun_fraction);
-    const double sun_colour_luminance = luminance(options.sun_color);
+    const double sun_colour_luminance = luminance_double(options.sun_color);
     check(options.sun_fraction == 0 || sun_colour_luminance > 0,
           "make_sky: the sun colour is black but sun fraction is {}", options.sun_fraction);
 
@@ -204,7 +202,8 @@ Image EnvironmentMap::make_sky(int width, int height, const Vec3& sun_direction,
     // (1 + cos r) / 2, the cap's mean of ω·sun being (1 + cos r) / 2.
     Rgb sun_radiance{};
     if (options.sun_fraction > 0) {
-        const double y_zenith = luminance(options.zenith), y_horizon = luminance(options.horizon);
+        const double y_zenith = luminance_double(options.zenith),
+                     y_horizon = luminance_double(options.horizon);
         const double e_sky = kTwoPi * (y_zenith / 2 + (y_horizon - y_zenith) / 20);
         const double cos_sun = std::max(sun.y, std::sin(radians(10.0)));
         const double e_sun_per_unit = kTwoPi * (1 - cos_radius) * cos_sun * (1 + cos_radius) / 2;

@@ -10,6 +10,7 @@
 
 #include "btf/io/package.h"
 #include "btf/quality/plot.h"
+#include "btf/stream/request.h"
 #include "btf/util/error.h"
 #include "btf/util/json_fields.h"
 #include "btf/util/limits.h"
@@ -29,16 +30,9 @@ bool id_char(char c) {
            c == '.' || c == '-';
 }
 
-std::string lower(std::string_view text) {
-    std::string out(text);
-    std::transform(out.begin(), out.end(), out.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return out;
-}
-
 // Packages: `.btfpkg`, and `.bsvtf` (the BSVTF packages of `btf bsvtf`, docs/bsvtf.md).
 bool has_package_extension(const fs::path& path) {
-    const std::string ext = lower(path.extension().string());
+    const std::string ext = ascii_lower(path.extension().string());
     return ext == ".btfpkg" || ext == ".bsvtf";
 }
 
@@ -176,9 +170,9 @@ const CatalogEntry& Catalog::add(const fs::path& package) {
     // Ids are compared without case: a bundle's materials/<id>.btfpkg files must stay distinct
     // on case-insensitive file systems too.
     const auto taken = [&](const std::string& id) {
-        const std::string key = lower(id);
+        const std::string key = ascii_lower(id);
         return std::any_of(m_entries.begin(), m_entries.end(),
-                           [&](const CatalogEntry& e) { return lower(e.id) == key; });
+                           [&](const CatalogEntry& e) { return ascii_lower(e.id) == key; });
     };
     entry.id = make_id(entry.name);
     for (int n = 2; taken(entry.id); ++n) {

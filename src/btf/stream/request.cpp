@@ -180,4 +180,11 @@ HandshakeCheck check_websocket_handshake(const HandshakeRequest& request) {
     return {};
 }
 
+std::string ascii_lower(std::string_view text) {
+    std::string out(text);
+    for (char& c : out)
+        if (c >= 'A' && c <= 'Z') c = char(c - 'A' + 'a');
+    return out;
+}
+
 }  // namespace btf::stream

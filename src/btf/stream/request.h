@@ -29,6 +29,9 @@ struct DecodedTarget {
 /// as far as a client can tell.
 DecodedTarget decode_target(std::string_view target);
 
+/// `text` with ASCII letters in lower case (file extensions, catalog ids: no locale).
+std::string ascii_lower(std::string_view text);
+
 /// The part of a file a GET answers, from parse_range().
 struct RangeAnswer {
     /// 200: the whole file (no Range field, or one that is ignored); 206: bytes [first, end);

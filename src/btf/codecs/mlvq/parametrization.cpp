@@ -18,7 +18,7 @@ namespace btf::mlvq {
 
 namespace {
 
-constexpr const char* kName = "mlvq grid";
+constexpr const char* kGridName = "mlvq grid";
 // Resampling terms whose weight is below this fraction of the sample's total are dropped.
 constexpr double kNegligible = 1e-7;
 
@@ -140,8 +140,8 @@ std::string source_name(const BtfSource& source) {
 
 void MlvqGrid::validate() const {
     auto axis = [](const char* name, int n, int least, const char* why) {
-        if (n < least) fail("{}: {} = {} is below {} ({})", kName, name, n, least, why);
-        if (n > kMaxAxis) fail("{}: {} = {} is above the limit {}", kName, name, n, kMaxAxis);
+        if (n < least) fail("{}: {} = {} is below {} ({})", kGridName, name, n, least, why);
+        if (n > kMaxAxis) fail("{}: {} = {} is above the limit {}", kGridName, name, n, kMaxAxis);
     };
     axis("n_alpha", n_alpha, 3, "with 2 slices both lie on the horizon");
     axis("n_beta", n_beta, 3, "with 2 samples per slice both are the poles on the horizon");
@@ -151,9 +151,9 @@ void MlvqGrid::validate() const {
         fail(
             "{}: n_phi_v = 2 cannot tell view azimuths φ and −φ apart (both blend the samples "
             "at 0 and 180 degrees alike); use 1 (isotropic) or at least 3",
-            kName);
+            kGridName);
     if (samples() > kMaxSamples)
-        fail("{}: {}x{}x{}x{} = {} samples per texel and channel exceed the limit {}", kName,
+        fail("{}: {}x{}x{}x{} = {} samples per texel and channel exceed the limit {}", kGridName,
              n_phi_v, n_theta_v, n_alpha, n_beta, samples(), kMaxSamples);
 }
 
@@ -373,7 +373,7 @@ float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* value
 SourceTexels::SourceTexels(int views, int lights, int64_t texels)
     : m_views(views), m_lights(lights), m_texels(texels) {
     if (views < 0 || lights < 0 || texels < 0)
-        fail("{}: texels of {} views x {} lights x {} texels", kName, views, lights, texels);
+        fail("{}: texels of {} views x {} lights x {} texels", kGridName, views, lights, texels);
     m_values.assign(size_t(bytes(views, lights, texels) / int64_t(sizeof(float))), 0.0f);
 }
 
@@ -417,9 +417,9 @@ SourceTexels read_rows(const BtfSource& source, int y0, int rows, Progress& prog
 Resampler::Resampler(const MlvqGrid& grid, const Sampling& sampling)
     : m_grid(grid), m_views(sampling.num_views()), m_lights(sampling.num_lights()) {
     m_grid.validate();
-    if (m_views < 1 || m_lights < 1) fail("{}: resampling needs views and lights", kName);
+    if (m_views < 1 || m_lights < 1) fail("{}: resampling needs views and lights", kGridName);
     if (int64_t(m_views) * m_lights > int64_t(INT32_MAX))
-        fail("{}: {} views x {} lights are too many images", kName, m_views, m_lights);
+        fail("{}: {} views x {} lights are too many images", kGridName, m_views, m_lights);
     const AngularInterpolator view_interp(sampling.views);
     const AngularInterpolator light_interp(sampling.lights);
     const MlvqGrid& g = m_grid;
@@ -466,7 +466,7 @@ Resampler::Resampler(const MlvqGrid& grid, const Sampling& sampling)
                         fail(
                             "{}: the angular interpolator gave no weight to grid sample (phi_v "
                             "{}, theta_v {}, alpha {}, beta {})",
-                            kName, m, k, i, j);
+                            kGridName, m, k, i, j);
                     std::sort(terms.begin(), terms.end());
                     for (const auto& [image, w] : terms)
                         m_terms.push_back({image, static_cast<float>(w / sum)});
@@ -522,14 +522,14 @@ void Resampler::gather_texel(const SourceTexels& raw, int64_t texel, float* out)
 
 void Resampler::check(const SourceTexels& raw) const {
     if (raw.views() != m_views || raw.lights() != m_lights)
-        fail("{}: texels of {} views x {} lights given to a resampler of {} x {}", kName,
+        fail("{}: texels of {} views x {} lights given to a resampler of {} x {}", kGridName,
              raw.views(), raw.lights(), m_views, m_lights);
 }
 
 void Resampler::resample(const SourceTexels& raw, int64_t first, int64_t count, float* out) const {
     check(raw);
     if (first < 0 || count < 0 || first > raw.texels() - count)
-        fail("{}: texels {} to {} are outside the {} given", kName, first, first + count - 1,
+        fail("{}: texels {} to {} are outside the {} given", kGridName, first, first + count - 1,
              raw.texels());
     constexpr int kTile = SourceTexels::kTile;
     const int64_t stride = 3 * samples(), end = first + count;
@@ -554,8 +554,8 @@ std::vector<float> Resampler::resample(const SourceTexels& raw) const {
 void Resampler::resample(const SourceTexels& raw, std::span<float> out) const {
     check(raw);
     if (int64_t(out.size()) != raw.texels() * 3 * samples())
-        fail("{}: {} output values for {} texels of {} samples in 3 channels", kName, out.size(),
-             raw.texels(), samples());
+        fail("{}: {} output values for {} texels of {} samples in 3 channels", kGridName,
+             out.size(), raw.texels(), samples());
     constexpr int64_t kChunk = 4 * SourceTexels::kTile;
     parallel_chunks(0, raw.texels(), kChunk, [&](int64_t b, int64_t e) {
         resample(raw, b, e - b, out.data() + b * 3 * samples());
