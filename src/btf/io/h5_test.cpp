@@ -14,7 +14,6 @@
 #include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "btf/testing/support.h"
 #include "btf/util/error.h"
@@ -711,12 +710,6 @@ bool have_h5py() {
            std::system("/usr/bin/python3 -c 'import h5py, numpy' > /dev/null 2>&1") == 0;
 }
 
-std::string slurp(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
-}
 
 TEST_F(H5Test, H5pyReadsTheFileAsDocumented) {
     if (!have_h5py()) GTEST_SKIP() << "/usr/bin/python3 with h5py and numpy is not available";
@@ -729,8 +722,8 @@ TEST_F(H5Test, H5pyReadsTheFileAsDocumented) {
     const fs::path out = file("out.json");
     const std::string command = fmt::format("/usr/bin/python3 '{}' '{}' 1 2 5 4 > '{}' 2>&1",
                                             script.string(), file("a.h5").string(), out.string());
-    ASSERT_EQ(std::system(command.c_str()), 0) << slurp(out);
-    const nlohmann::json result = nlohmann::json::parse(slurp(out));
+    ASSERT_EQ(std::system(command.c_str()), 0) << test::read_file(out);
+    const nlohmann::json result = nlohmann::json::parse(test::read_file(out));
     for (int c = 0; c < 3; ++c)
         EXPECT_NEAR(result["rgb"][c].get<double>(), known_value(1, 2, 5, 4, c), 1e-3);
     EXPECT_NEAR(result["view"][0].get<double>(), 30, 1e-9);
@@ -772,7 +765,7 @@ with h5py.File("{path}", "w") as f:
     { std::ofstream(file("write.py")) << script; }
     const std::string command = fmt::format("/usr/bin/python3 '{}' > '{}' 2>&1",
                                             file("write.py").string(), file("log").string());
-    ASSERT_EQ(std::system(command.c_str()), 0) << slurp(file("log"));
+    ASSERT_EQ(std::system(command.c_str()), 0) << test::read_file(file("log"));
     EXPECT_TRUE(h5::probe(file("py.h5")));
     const auto read = h5::open(file("py.h5"));
     expect_sampling(read->sampling(), test_sampling());

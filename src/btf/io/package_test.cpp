@@ -97,7 +97,7 @@ std::string decode_error(const Bytes& bytes) {
     return error_of([&] { decode_package(bytes, "mat.btfpkg"); });
 }
 
-Bytes slurp(const fs::path& path) {
+Bytes file_bytes(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
     return Bytes(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
@@ -467,7 +467,7 @@ TEST(Package, WriteReadAndProbe) {
     Package p = sample_package();
     Package copy = sample_package();
     write_package(path, p);
-    EXPECT_EQ(slurp(path), encode_package(copy));
+    EXPECT_EQ(file_bytes(path), encode_package(copy));
     EXPECT_EQ(p.file_bytes, fs::file_size(path));
     EXPECT_TRUE(probe_package(path));
 
@@ -479,7 +479,7 @@ TEST(Package, WriteReadAndProbe) {
     EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
 
     // A damaged file: the error names the path.
-    Bytes bytes = slurp(path);
+    Bytes bytes = file_bytes(path);
     bytes.resize(bytes.size() - 1);
     const fs::path cut = dir.path() / "cut.btfpkg";
     std::ofstream(cut, std::ios::binary)
@@ -509,12 +509,12 @@ TEST(Package, WriteIsAtomic) {
     // A failed encode leaves an existing file as it was and no temporary behind.
     const fs::path path = dir.path() / "mat.btfpkg";
     write_package(path, p);
-    const Bytes before = slurp(path);
+    const Bytes before = file_bytes(path);
     Package bad = sample_package();
     bad.sections.push_back(section("means", {1}));
     EXPECT_THAT(error_of([&] { write_package(path, bad); }),
                 HasSubstr(path.string() + ": two sections are named 'means'"));
-    EXPECT_EQ(slurp(path), before);
+    EXPECT_EQ(file_bytes(path), before);
     EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
 
     // Cancelling in the middle leaves the old file too.
@@ -523,7 +523,7 @@ TEST(Package, WriteIsAtomic) {
     Package other = sample_package();
     other.sections.pop_back();
     EXPECT_THROW(write_package(path, other, {}, cancelled), Cancelled);
-    EXPECT_EQ(slurp(path), before);
+    EXPECT_EQ(file_bytes(path), before);
     EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
 }
 
