@@ -710,7 +710,6 @@ bool have_h5py() {
            std::system("/usr/bin/python3 -c 'import h5py, numpy' > /dev/null 2>&1") == 0;
 }
 
-
 TEST_F(H5Test, H5pyReadsTheFileAsDocumented) {
     if (!have_h5py()) GTEST_SKIP() << "/usr/bin/python3 with h5py and numpy is not available";
     TestSource source;
