@@ -9,7 +9,7 @@
 /// writes a picture pays it, and pays it once.
 ///
 /// Both sides are built from this tree by the same compiler, so the table passes C++ types; no
-/// exception crosses it (every failure comes back as `false` and a message).
+/// exception crosses it (every failure comes back as `false` or null and a message).
 
 #include <cstddef>
 #include <cstdint>
@@ -18,11 +18,12 @@
 namespace btf::image_module {
 
 /// Bumped whenever the table changes; a module built with another version is refused.
-inline constexpr uint32_t kAbiVersion = 1;
+inline constexpr uint32_t kAbiVersion = 2;
 
 /// What an opened image declares in its header.
 struct Header {
     int width = 0, height = 0, channels = 0;
+    int depth = 1;          ///< slices of a volume image (DDS, TIFF): read() would decode them all
     bool is_float = false;  ///< float, half or double samples (taken as linear)
     bool is_8bit = false;   ///< 8-bit unsigned samples
 };
@@ -44,8 +45,8 @@ struct Table {
     Reader* (*open)(const std::string& name, const void* data, size_t size, int limit_mb,
                     std::string* error);
     Header (*header)(const Reader* reader);
-    /// Decodes every channel into `pixels` (width × height × channels values of 8-bit or float
-    /// samples); false with the decoder's first error line when it fails or reports damage.
+    /// Decodes every channel into `pixels` (width × height × depth × channels values of 8-bit or
+    /// float samples); false with the decoder's first error line when it fails or reports damage.
     bool (*read)(Reader* reader, bool as_8bit, void* pixels, CancelCheck cancelled,
                  std::string* error);
     void (*close)(Reader* reader);

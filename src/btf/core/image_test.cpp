@@ -1,9 +1,12 @@
 #include "btf/core/image.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstring>
 #include <fstream>
+#include <functional>
 #include <iterator>
 
 #include "btf/core/color.h"
@@ -89,6 +92,48 @@ TEST_F(ImageTest, ErrorsNameTheFile) {
     EXPECT_THROW(read_image(m_dir / "missing.png"), Error);
     EXPECT_THROW(write_image(m_dir / "x.unknownext", gradient(2, 2)), Error);
     EXPECT_FALSE(fs::exists(m_dir / "x.unknownext"));
+}
+
+// A DDS volume texture of 4 × 4 texels and `depth` slices, uncompressed 32-bit BGRA.
+std::vector<uint8_t> dds_volume(uint32_t depth) {
+    std::vector<uint8_t> bytes(4 + 124);
+    auto put = [&](size_t offset, uint32_t v) {
+        for (int i = 0; i < 4; ++i) bytes[offset + i] = uint8_t(v >> (8 * i));
+    };
+    std::memcpy(bytes.data(), "DDS ", 4);
+    const size_t h = 4;  // the header follows the magic
+    put(h + 0, 124);
+    put(h + 4, 0x1 | 0x2 | 0x4 | 0x1000 | 0x800000);  // caps, height, width, pixel format, depth
+    put(h + 8, 4), put(h + 12, 4), put(h + 16, 16), put(h + 20, depth);
+    put(h + 72, 32), put(h + 76, 0x40 | 0x1);  // pixel format: RGB with alpha
+    put(h + 84, 32), put(h + 88, 0x00ff0000), put(h + 92, 0x0000ff00), put(h + 96, 0x000000ff);
+    put(h + 100, 0xff000000);
+    put(h + 104, 0x1000 | 0x8), put(h + 108, 0x200000);  // texture, complex; volume
+    bytes.resize(bytes.size() + size_t(4 * 4 * 4) * depth, 0x80);
+    return bytes;
+}
+
+TEST_F(ImageTest, VolumeImagesAreRefusedNotDecodedIntoOneSlice) {
+    // The decoder would write every slice into a buffer sized for one.
+    const std::vector<uint8_t> volume = dds_volume(64);
+    std::ofstream(m_dir / "volume.dds", std::ios::binary)
+        .write(reinterpret_cast<const char*>(volume.data()), std::streamsize(volume.size()));
+    for (const auto& read : std::vector<std::function<void()>>{
+             [&] { read_image(m_dir / "volume.dds"); },
+             [&] { read_image_memory(volume.data(), volume.size(), "volume.dds"); },
+             [&] { read_image_size_memory(volume.data(), volume.size(), "volume.dds"); }}) {
+        try {
+            read();
+            ADD_FAILURE() << "a volume was read";
+        } catch (const Error& e) {
+            EXPECT_THAT(e.what(), testing::HasSubstr("volume.dds: image is a volume of 64 slices"));
+        }
+    }
+    // One slice is an ordinary image.
+    const std::vector<uint8_t> flat = dds_volume(1);
+    const Image image = read_image_memory(flat.data(), flat.size(), "flat.dds", Encoding::kRaw);
+    ASSERT_EQ(image.width(), 4);
+    EXPECT_NEAR(image.at(3, 3, 0), 128 / 255.0, 1e-6);
 }
 
 TEST(Image, BilinearIsExactAtTexelCentres) {

@@ -7,6 +7,8 @@
 #include <cpuid.h>
 #include <immintrin.h>
 #endif
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -610,7 +612,26 @@ void in_child_process(const std::function<void()>& work, const std::string& name
 
 /// Opens and validates the file at `path` or, when `image` is given, the file image in memory
 /// (`path` then only names it): everything open_layout() does after its checks of the path.
-Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image);
+/// `open_as`, when given, is the name libhdf5 opens instead of `path` (which still names the file
+/// in messages).
+Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image,
+                   const fs::path& open_as = {});
+
+/// A file open for reading, named by its descriptor: /proc/self/fd/N opens the same file however
+/// its path is renamed over, in this process and in a forked child.
+class PinnedFile {
+  public:
+    explicit PinnedFile(const fs::path& path) : m_fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {
+        if (m_fd < 0) fail("{}: cannot open for reading: {}", path.string(), std::strerror(errno));
+    }
+    ~PinnedFile() { ::close(m_fd); }
+    PinnedFile(const PinnedFile&) = delete;
+    PinnedFile& operator=(const PinnedFile&) = delete;
+    fs::path name() const { return fmt::format("/proc/self/fd/{}", m_fd); }
+
+  private:
+    int m_fd;
+};
 
 /// Opens and validates the file at `path` or, when `image` is given, the file image in memory
 /// (`path` then only names it).
@@ -632,16 +653,25 @@ Layout open_layout(const fs::path& path, const std::vector<uint8_t>* image = nul
             fail("{}: cannot open for reading: {}", ctx.name(), std::strerror(errno));
         if (!has_hdf5_signature(path)) fail("{}: not an HDF5 file (no HDF5 signature)", ctx.name());
     }
-    in_child_process([&] { read_layout(path, image); }, ctx.name());
-    return read_layout(path, image);
+    if (image) {
+        in_child_process([&] { read_layout(path, image); }, ctx.name());
+        return read_layout(path, image);
+    }
+    // The child checks the very file this process then reads, even if the path is renamed over
+    // in between (libhdf5 keeps its own descriptor once the file is open).
+    const PinnedFile pinned(path);
+    in_child_process([&] { read_layout(path, nullptr, pinned.name()); }, ctx.name());
+    return read_layout(path, nullptr, pinned.name());
 }
 
-Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image) {
+Layout read_layout(const fs::path& path, const std::vector<uint8_t>* image,
+                   const fs::path& open_as) {
     const Context ctx(path);
     Lock lock;
     Layout layout;
     const Handle fapl = image ? memory_access(ctx, *image) : file_access(ctx);
-    layout.file = ctx.handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl), H5Fclose,
+    const fs::path& opened = open_as.empty() ? path : open_as;
+    layout.file = ctx.handle(H5Fopen(opened.c_str(), H5F_ACC_RDONLY, fapl), H5Fclose,
                              "cannot open HDF5 file (truncated or corrupt?)");
     const hid_t file = layout.file;
 

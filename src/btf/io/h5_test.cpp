@@ -632,21 +632,31 @@ TEST_F(H5Test, MalformedInputsFailWithClearErrors) {
 
 // Found by fuzzing: damaged global heaps that make libhdf5 1.10 copy or read far outside its
 // buffers while reading the root attributes. btfkit walks a file's structure in a child process
-// first, so the crash is an error naming the file.
+// first, so the crash is an error naming the file. Under AddressSanitizer the memory around
+// libhdf5's buffers differs and, for the second file, libhdf5 loops instead of crashing: the
+// child is then killed after 120 s and reported the same way. That case is left out of the
+// sanitizer build (three 120 s waits); Isolate.* tests the timeout itself.
 TEST_F(H5Test, FilesThatCrashLibhdf5AreReportedNotFatal) {
     const fs::path folder = fs::path(BTF_SOURCE_DIR) / "fuzz/regressions/hdf5";
-    for (const char* name : {"global-heap-read-overflow.h5", "global-heap-protect-overflow.h5"}) {
+    std::vector<const char*> names{"global-heap-read-overflow.h5"};
+    if (!BTF_TEST_ASAN) names.push_back("global-heap-protect-overflow.h5");
+    const auto contained = [](const std::string& name) {
+        return testing::AllOf(
+            testing::StartsWith(name + ": libhdf5 "),
+            testing::AnyOf(HasSubstr("crashed ("), HasSubstr("did not finish within")),
+            testing::EndsWith("the input is damaged or crafted"));
+    };
+    for (const char* name : names) {
         SCOPED_TRACE(name);
         const fs::path damaged = folder / name;
         ASSERT_TRUE(fs::is_regular_file(damaged));
         EXPECT_TRUE(h5::probe(damaged));  // so that open_source() reports it
-        const std::string expected = damaged.string() + ": libhdf5 crashed (";
-        EXPECT_THAT(error_of([&] { h5::open(damaged); }), HasSubstr(expected));
-        EXPECT_THAT(error_of([&] { h5::read_header(damaged); }), HasSubstr(expected));
+        EXPECT_THAT(error_of([&] { h5::open(damaged); }), contained(damaged.string()));
+        EXPECT_THAT(error_of([&] { h5::read_header(damaged); }), contained(damaged.string()));
         std::ifstream in(damaged, std::ios::binary);
         std::vector<uint8_t> image((std::istreambuf_iterator<char>(in)), {});
         EXPECT_THAT(error_of([&] { h5::open_memory(image, "in-memory.h5"); }),
-                    HasSubstr("in-memory.h5: libhdf5 crashed ("));
+                    contained("in-memory.h5"));
     }
     // The process is intact: a valid file still opens and reads.
     TestSource source;

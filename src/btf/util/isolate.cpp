@@ -100,6 +100,7 @@ void run_isolated(const std::function<void()>& work, const std::string& what,
     std::string message;
     const auto deadline = std::chrono::steady_clock::now() + options.timeout;
     bool timed_out = false;
+    int broken = 0;  // errno of a failed poll or read: the child is killed, not waited for
     for (;;) {
         if (Progress::all_cancelled()) {
             ::close(report);
@@ -112,18 +113,26 @@ void run_isolated(const std::function<void()>& work, const std::string& what,
         }
         pollfd p{report, POLLIN, 0};
         const int ready = ::poll(&p, 1, kPollMs);
-        if (ready < 0 && errno != EINTR) break;
+        if (ready < 0 && errno != EINTR) {
+            broken = errno;
+            break;
+        }
         if (ready <= 0) continue;
         char buffer[4096];
         const ssize_t n = ::read(report, buffer, sizeof buffer);
         if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) break;  // end of the report: the child has finished or died
+        if (n < 0) {
+            broken = errno;
+            break;
+        }
+        if (n == 0) break;  // end of the report: the child has finished or died
         if (message.size() < kMaxMessage) message.append(buffer, size_t(n));
     }
     ::close(report);
-    const int status = reap(child, timed_out);
+    const int status = reap(child, timed_out || broken != 0);
     Progress::check_all();
 
+    if (broken) fail("{} could not be watched in its own process: {}", what, std::strerror(broken));
     if (timed_out)
         fail("{} did not finish within {} s; the input is damaged or crafted", what,
              options.timeout.count());

@@ -5,8 +5,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <csignal>
 #include <cstdlib>
+#include <filesystem>
+#include <iterator>
+#include <string>
 #include <thread>
 
 #include "btf/util/error.h"
@@ -17,7 +21,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-std::string error_of(const std::function<void()>& work, const IsolateOptions& options = {}) {
+std::string isolated_error(const std::function<void()>& work, const IsolateOptions& options = {}) {
     try {
         run_isolated(work, "input.x: somelib", options);
     } catch (const Error& e) {
@@ -33,30 +37,31 @@ TEST(Isolate, ReturnsWhenTheWorkReturnsAndKeepsItsEffectsInTheChild) {
 }
 
 TEST(Isolate, PassesOnTheChildsError) {
-    EXPECT_EQ(error_of([] { fail("input.x: byte {}: bad magic", 12); }),
+    EXPECT_EQ(isolated_error([] { fail("input.x: byte {}: bad magic", 12); }),
               "input.x: byte 12: bad magic");
-    EXPECT_EQ(error_of([] { throw std::out_of_range("vector index"); }), "vector index");
-    EXPECT_EQ(error_of([] { throw 7; }), "unknown error");
+    EXPECT_EQ(isolated_error([] { throw std::out_of_range("vector index"); }), "vector index");
+    EXPECT_EQ(isolated_error([] { throw 7; }), "unknown error");
 }
 
 TEST(Isolate, ACrashInTheChildIsAnErrorHere) {
-    EXPECT_EQ(error_of([] { std::raise(SIGKILL); }),
+    EXPECT_EQ(isolated_error([] { std::raise(SIGKILL); }),
               fmt::format("input.x: somelib crashed ({}); the input is damaged or crafted",
                           ::strsignal(SIGKILL)));
     // (Under AddressSanitizer a segmentation fault is its report and exit status 1.)
-    EXPECT_THAT(error_of([] { std::raise(SIGSEGV); }), HasSubstr("input.x: somelib crashed ("));
-    EXPECT_THAT(error_of([] { std::abort(); }), HasSubstr("input.x: somelib crashed ("));
-    EXPECT_EQ(error_of([] { ::_exit(3); }),
+    EXPECT_THAT(isolated_error([] { std::raise(SIGSEGV); }),
+                HasSubstr("input.x: somelib crashed ("));
+    EXPECT_THAT(isolated_error([] { std::abort(); }), HasSubstr("input.x: somelib crashed ("));
+    EXPECT_EQ(isolated_error([] { ::_exit(3); }),
               "input.x: somelib crashed (exit status 3); the input is damaged or crafted");
     // Exit status 0 without a report (the work called exit()) is no success either.
-    EXPECT_EQ(error_of([] { ::_exit(0); }),
+    EXPECT_EQ(isolated_error([] { ::_exit(0); }),
               "input.x: somelib crashed (exit status 0); the input is damaged or crafted");
 }
 
 TEST(Isolate, AChildThatNeverFinishesIsKilledAtTheTimeout) {
     IsolateOptions options;
     options.timeout = std::chrono::seconds(1);
-    EXPECT_EQ(error_of(
+    EXPECT_EQ(isolated_error(
                   [] {
                       for (;;) ::pause();
                   },
@@ -70,8 +75,14 @@ TEST(Isolate, LongMessagesAndOtherThreadsInTheParent) {
     std::thread busy([&] {
         while (!stop.load()) std::this_thread::yield();
     });
+    const auto threads = [] {
+        namespace fs = std::filesystem;
+        return std::distance(fs::directory_iterator("/proc/self/task"), fs::directory_iterator{});
+    };
+    ASSERT_GE(threads(), 2);
     const std::string message(20000, 'm');
-    EXPECT_EQ(error_of([&] { throw Error(message); }), message);
+    EXPECT_EQ(isolated_error([&] { throw Error(std::to_string(threads()) + " " + message); }),
+              "1 " + message);
     stop.store(true);
     busy.join();
 }
