@@ -4,7 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "btf/bsvtf/file.h"
 #include "btf/io/package.h"
@@ -44,6 +49,61 @@ TEST(BsvtfCli, PreprocessesAnFmfPackage) {
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("lossless"), std::string::npos) << r.output;
     EXPECT_EQ(bsvtf::read_bsvtf(read_package(out), out).step, 0.0f);
+}
+
+// The three numbers `btf eval` prints.
+std::array<double, 3> rgb_of(const test::CliResult& r) {
+    std::array<double, 3> rgb{-1, -1, -1};
+    EXPECT_EQ(std::sscanf(r.output.c_str(), "%lf %lf %lf", &rgb[0], &rgb[1], &rgb[2]), 3)
+        << r.output;
+    return rgb;
+}
+
+TEST(BsvtfCli, AFileIsAMaterialForEveryCommand) {
+    const test::TempFolder dir("bsvtf_material_cli");
+    const auto at = [&](const std::string& name) { return (dir.path() / name).string(); };
+    ASSERT_EQ(run("synth --preset woven_fabric --size 32 -o " + at("m.h5")).code, 0);
+    test::CliResult r = run("compress " + at("m.h5") +
+                            " --codec fmf --components 6 --no-error -o " + at("m.btfpkg"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    r = run("bsvtf " + at("m.btfpkg") + " -o " + at("m.bsvtf") + " --tile 16 --lossless");
+    ASSERT_EQ(r.code, 0) << r.output;
+
+    // Lossless tiles: the package's value up to the half floats the tiles hold.
+    for (const char* query : {" --uv 0.3,0.7 --light 30,40 --view 20,200",
+                              " --uv -1.9,4.25 --light 60,300 --view 45,10"}) {
+        const test::CliResult fmf = run("eval " + at("m.btfpkg") + query);
+        const test::CliResult tiles = run("eval " + at("m.bsvtf") + query);
+        ASSERT_EQ(fmf.code, 0) << fmf.output;
+        ASSERT_EQ(tiles.code, 0) << tiles.output;
+        const auto want = rgb_of(fmf), got = rgb_of(tiles);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(got[c], want[c], 2e-3 * std::max(std::abs(want[c]), 0.01)) << query;
+    }
+
+    r = run("--quiet decompress " + at("m.bsvtf") + " -o " + at("d.h5"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(at("d.h5")));
+
+    r = run("quality " + at("m.btfpkg") + " " + at("m.bsvtf") + " --metrics rmse --json");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const nlohmann::json quality = nlohmann::json::parse(r.output);
+    EXPECT_LT(quality.at("rmse").get<double>(), 1e-3) << r.output;
+
+    std::ofstream(at("scene.json")) << R"({
+      "camera": {"position": [0, 1, 3], "look_at": [0, 0.3, 0], "width": 24, "height": 16},
+      "render": {"integrator": "direct", "spp": 1},
+      "objects": [{"shape": "sphere", "radius": 0.5, "position": [0, 0.4, 0],
+                   "material": {"type": "btf", "file": "m.bsvtf"}}],
+      "lights": [{"type": "directional", "direction": [1, 2, 1], "irradiance": 3}]
+    })";
+    r = run("--quiet render " + at("scene.json") + " --compare " + at("m.btfpkg") + " " +
+            at("m.bsvtf") + " -o " + at("cmp.png"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("ΔE00 mean 0.0"), std::string::npos) << r.output;
+    r = run("--quiet render " + at("scene.json") + " -o " + at("one.png"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(at("one.png")));
 }
 
 TEST(BsvtfCli, RefusesOtherInputsWithOneLine) {

@@ -19,7 +19,8 @@ Command register_decompress(CLI::App& app, GlobalOptions& global) {
         "decompress",
         "Decode a btfkit package (or a prefix of one) to btfkit HDF5 (OUT ends in .h5) or a UTIA "
         "image set (OUT without an extension: a new folder)");
-    cmd->add_option("package", args->input, "btfkit package (.btfpkg)")->required();
+    cmd->add_option("package", args->input, "btfkit package (.btfpkg) or BSVTF file (.bsvtf)")
+        ->required();
     cmd->add_option("-o,--output", args->output,
                     "output .h5 file or new folder (must not be an existing folder)")
         ->required();

@@ -15,11 +15,13 @@ Command register_eval(CLI::App& app, GlobalOptions&) {
         std::string path, uv, light, view;
     };
     auto args = std::make_shared<Args>();
-    CLI::App* cmd = app.add_subcommand(
-        "eval",
-        "Print the linear RGB value of a compressed material (btfkit package or UBO2014 .btf) at "
-        "a texture position and any light and view direction");
-    cmd->add_option("file", args->path, "btfkit package (.btfpkg) or UBO2014 .btf")->required();
+    CLI::App* cmd = app.add_subcommand("eval",
+                                       "Print the linear RGB value of a compressed material "
+                                       "(btfkit package, BSVTF file or UBO2014 .btf) at a texture "
+                                       "position and any light and view direction");
+    cmd->add_option("file", args->path,
+                    "btfkit package (.btfpkg), BSVTF file (.bsvtf) or UBO2014 .btf")
+        ->required();
     cmd->add_option("--uv", args->uv, "texture position 'u,v' (wraps; 0,0 = first texel's corner)")
         ->required();
     cmd->add_option("--light", args->light, "light direction 'theta,phi' in degrees")->required();

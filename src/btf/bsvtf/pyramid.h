@@ -32,6 +32,7 @@
 
 #include "btf/codecs/factor/model.h"
 #include "btf/core/material.h"
+#include "btf/util/parallel.h"
 #include "btf/util/progress.h"
 
 namespace btf::bsvtf {
@@ -94,6 +95,18 @@ class TileLayout {
     std::vector<size_t> m_level_base;  // per level: first tile index within a group
     size_t m_tiles_per_group = 0;
 };
+
+/// Calls fn(tile index) for every tile of `layout`, level by level from the coarsest (the tiles of
+/// one level in parallel): every tile's parent is done before the tile, as prediction needs.
+template <typename Fn>
+void for_each_level_coarsest_first(const TileLayout& layout, Fn&& fn) {
+    for (int level = layout.levels() - 1; level >= 0; --level) {
+        std::vector<size_t> tiles;
+        for (size_t t = 0; t < layout.tile_count(); ++t)
+            if (layout.id(t).level == level) tiles.push_back(t);
+        parallel_for(0, int64_t(tiles.size()), [&](int64_t k) { fn(tiles[size_t(k)]); });
+    }
+}
 
 /// The tiles themselves, cut from a factor model (preprocessing).
 class Pyramid : public TileLayout {

@@ -227,23 +227,17 @@ EncodedPyramid encode_pyramid(const Pyramid& pyramid, float step, int deflate_le
     e.decoded.resize(pyramid.tile_count() * values);
     progress.begin("compressing tiles", pyramid.tile_count());
     // Coarsest level first: a child is predicted from its parent as the receiver decodes it.
-    for (int level = pyramid.levels() - 1; level >= 0; --level) {
-        std::vector<size_t> tiles;  // of this level
-        for (size_t t = 0; t < pyramid.tile_count(); ++t)
-            if (pyramid.id(t).level == level) tiles.push_back(t);
-        parallel_for(0, int64_t(tiles.size()), [&](int64_t k) {
-            const size_t t = tiles[size_t(k)];
-            const TileId id = pyramid.id(t);
-            std::vector<float> prediction;
-            if (pyramid.has_parent(id)) {
-                const size_t parent = pyramid.index(pyramid.parent(id));
-                prediction = predict_child({e.decoded.data() + parent * values, values}, g, id);
-            }
-            e.payloads[t] = encode_tile(pyramid.tile(id), prediction, g, step, deflate_level);
-            decode_tile(e.payloads[t], prediction, g, {e.decoded.data() + t * values, values});
-            progress.advance();
-        });
-    }
+    for_each_level_coarsest_first(pyramid, [&](size_t t) {
+        const TileId id = pyramid.id(t);
+        std::vector<float> prediction;
+        if (pyramid.has_parent(id)) {
+            const size_t parent = pyramid.index(pyramid.parent(id));
+            prediction = predict_child({e.decoded.data() + parent * values, values}, g, id);
+        }
+        e.payloads[t] = encode_tile(pyramid.tile(id), prediction, g, step, deflate_level);
+        decode_tile(e.payloads[t], prediction, g, {e.decoded.data() + t * values, values});
+        progress.advance();
+    });
     progress.finish();
     double err = 0, energy = 0;
     for (size_t t = 0; t < pyramid.tile_count(); ++t) {

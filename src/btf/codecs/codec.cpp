@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 
+#include "btf/bsvtf/material.h"
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/lpca/lpca.h"
 #include "btf/codecs/mlvq/mlvq.h"
@@ -102,6 +103,8 @@ const Codec& find_codec(std::string_view name) {
 }
 
 std::unique_ptr<Material> open_material(const Package& package) {
+    // A BSVTF file is made from an fmf package by `btf bsvtf`, not by a codec's encode.
+    if (package.codec() == "bsvtf") return bsvtf::open_material(package, "bsvtf");
     return find_codec(package.codec()).open(package);
 }
 

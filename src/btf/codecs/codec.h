@@ -87,7 +87,8 @@ const std::vector<const Codec*>& codecs();
 /// The codec named `name`; throws btf::Error listing the known codecs otherwise.
 const Codec& find_codec(std::string_view name);
 
-/// Opens a package (or a clean prefix) with the codec its header names.
+/// Opens a package (or a clean prefix) with the codec its header names, or a BSVTF file
+/// (bsvtf/material.h: its finest tiles).
 std::unique_ptr<Material> open_material(const Package& package);
 /// read_package(path) then open_material().
 std::unique_ptr<Material> open_material(const std::filesystem::path& path);

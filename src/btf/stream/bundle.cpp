@@ -5,6 +5,7 @@
 #include <fstream>
 #include <vector>
 
+#include "btf/stream/request.h"
 #include "btf/util/atomic_file.h"
 #include "btf/util/error.h"
 
@@ -22,13 +23,6 @@ struct CopyItem {
 
 bool hidden(const fs::path& name) {
     return name.string().starts_with(".");
-}
-
-bool inside(const fs::path& path, const fs::path& root) {
-    auto p = path.begin();
-    for (auto r = root.begin(); r != root.end(); ++r, ++p)
-        if (p == path.end() || *p != *r) return false;
-    return p != path.end();
 }
 
 // The web root's files (not its hidden ones), checked before anything is written: a symbolic

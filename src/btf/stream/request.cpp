@@ -187,4 +187,11 @@ std::string ascii_lower(std::string_view text) {
     return out;
 }
 
+bool inside(const std::filesystem::path& path, const std::filesystem::path& root) {
+    auto p = path.begin();
+    for (auto r = root.begin(); r != root.end(); ++r, ++p)
+        if (p == path.end() || *p != *r) return false;
+    return p != path.end();
+}
+
 }  // namespace btf::stream

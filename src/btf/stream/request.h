@@ -5,6 +5,7 @@
 /// out (HTTP statuses as numbers); the server turns the answers into responses.
 
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -31,6 +32,10 @@ DecodedTarget decode_target(std::string_view target);
 
 /// `text` with ASCII letters in lower case (file extensions, catalog ids: no locale).
 std::string ascii_lower(std::string_view text);
+
+/// True if canonical `path` lies inside canonical folder `root` (and is not `root` itself): what
+/// the server serves and the bundle copies from the web root.
+bool inside(const std::filesystem::path& path, const std::filesystem::path& root);
 
 /// The part of a file a GET answers, from parse_range().
 struct RangeAnswer {

@@ -123,14 +123,6 @@ std::string_view content_type(const fs::path& path) {
     return "application/octet-stream";
 }
 
-// True if canonical `path` lies inside canonical folder `root`.
-bool inside(const fs::path& path, const fs::path& root) {
-    auto p = path.begin();
-    for (auto r = root.begin(); r != root.end(); ++r, ++p)
-        if (p == path.end() || *p != *r) return false;
-    return p != path.end();
-}
-
 // ---- shared state and sessions -----------------------------------------------------------------
 
 class Session;
