@@ -159,6 +159,7 @@ class Client : public std::enable_shared_from_this<Client> {
         if (ec == websocket::error::closed) {
             if (m_ws.reason().code != websocket::close_code::normal)
                 return fail("closed with code " + std::to_string(m_ws.reason().code));
+            if (!m_begin) return fail("closed without the begin message");
             if (!m_end || m_offset != m_expected.size())
                 return fail("closed after " + std::to_string(m_offset) + " bytes without the end");
             m_result.ok = true;
@@ -172,14 +173,17 @@ class Client : public std::enable_shared_from_this<Client> {
             const auto message = nlohmann::json::parse(std::string(bytes, data.size()));
             const std::string type = message.value("type", "");
             if (type == "begin") {
+                if (m_begin || m_offset != 0) return fail("begin after the stream started");
                 if (message.value("bytes", uint64_t(0)) != m_expected.size())
                     return fail("begin names another size");
+                m_begin = true;
             } else if (type == "end") {
                 m_end = true;
             } else {
                 return fail("unexpected message " + message.dump());
             }
         } else {
+            if (!m_begin) return fail("package bytes before the begin message");
             if (m_offset == 0) m_result.first_byte_s = seconds();
             if (m_offset + data.size() > m_expected.size() ||
                 std::memcmp(bytes, m_expected.data() + m_offset, data.size()) != 0)
@@ -204,7 +208,7 @@ class Client : public std::enable_shared_from_this<Client> {
     Result& m_result;
     Clock::time_point m_t0;
     size_t m_offset = 0;
-    bool m_end = false;
+    bool m_begin = false, m_end = false;
 };
 
 double percentile(std::vector<double> v, double q) {
