@@ -61,6 +61,44 @@ ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
     return f;
 }
 
+factor::Model model_of(const ubo2014::Factorization& f, const std::string& what) {
+    f.validate(what);
+    check(!f.meta.cosine_flag,
+          "{}: the values are multiplied by cos θ_light (meta cosine flag), which btfkit's factor "
+          "model does not hold yet",
+          what);
+    factor::Model model;
+    model.width = f.width;
+    model.height = f.height;
+    model.sampling = f.sampling;
+    model.hdr = true;  // measured values, in the lab's units: nothing bounds them by 1
+    model.groups.emplace_back();
+    for (int v = 0; v < f.sampling.num_views(); ++v) model.groups[0].push_back(v);
+    const auto block_of = [](const ubo2014::Factor& factor, int plane) {
+        factor::Block block;
+        block.plane = plane;
+        block.a = factor.u;
+        block.b = factor.sxv;
+        block.energy.assign(factor.s.data(), factor.s.data() + factor.s.size());
+        return block;
+    };
+    if (f.body == ubo2014::Body::kDfmf) {
+        model.colour.basis = f.color_model == ubo2014::kColorModelLogYUV
+                                 ? factor::ColourBasis::kUboModel11
+                                 : factor::ColourBasis::kPerChannel;
+        for (int plane = 0; plane < 3; ++plane)
+            model.blocks.push_back(block_of(f.factors[size_t(plane)], plane));
+    } else {
+        // FMF rows are (view·nL + light)·3 + channel: the rgb plane's rows, views in order.
+        model.colour.basis = factor::ColourBasis::kRgb;
+        model.colour.log = f.dynamic_range_reduction != 0;
+        model.colour.log_eps = ubo2014::kDynamicRangeEps;
+        model.blocks.push_back(block_of(f.factors[0], 0));
+    }
+    model.validate(what);
+    return model;
+}
+
 ubo2014::Factorization factorize_dfmf(const BtfSource& source, const DfmfExportOptions& options,
                                       Progress& progress) {
     const std::string name =

@@ -36,6 +36,13 @@ struct DfmfExportOptions {
 ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
                                const ubo2014::Meta& meta, const std::string& what);
 
+/// The inverse of to_dfmf(), without refactorizing: the fmf model whose value at every sample is
+/// the factorization's (its factors as they are: DFMF colour model 0 → per-channel planes, 11 →
+/// model11 planes; an FMF body → one rgb plane, with log colour of eps 1e-5 when its dynamic range
+/// is reduced). Throws btf::Error naming `what` for a factorization the factor model cannot hold
+/// yet: one whose values were multiplied by cos θ_light (the meta block's cosine flag).
+factor::Model model_of(const ubo2014::Factorization& factorization, const std::string& what);
+
 /// fmf::factorize (no mean subtraction) then to_dfmf().
 ubo2014::Factorization factorize_dfmf(const BtfSource& source, const DfmfExportOptions& options,
                                       Progress& progress = Progress::none());

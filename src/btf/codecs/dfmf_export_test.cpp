@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/io/function_source.h"
@@ -104,6 +105,82 @@ TEST(DfmfExport, RefusesModelsDfmfCannotHold) {
     bad.color_model = 3;
     EXPECT_THAT(test::error_of([&] { factorize_dfmf(source, bad); }),
                 HasSubstr("cannot factorize into colour model 3"));
+}
+
+// ---- model_of: a UBO2014 factorization as an fmf model, without refactorizing ---------------
+
+// Random factors (model 11's log Y stays within ±1.5 for three components of ±0.5 · ±1).
+ubo2014::Factorization random_ubo2014(ubo2014::Body body, int32_t colour_model, uint32_t drr) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> uniform(-0.5f, 0.5f);
+    ubo2014::Factorization f;
+    f.body = body;
+    f.sampling = test::five_views_four_lights();
+    f.width = 6, f.height = 5;
+    f.color_model = colour_model;
+    f.dynamic_range_reduction = drr;
+    const int images = f.sampling.num_images();
+    const auto factor = [&](int64_t rows, int k) {
+        ubo2014::Factor out;
+        out.u.resize(rows, k);
+        out.sxv.resize(int64_t(f.width) * f.height, k);
+        out.s.resize(k);
+        for (int64_t i = 0; i < out.u.size(); ++i) out.u.data()[i] = uniform(rng);
+        for (int64_t i = 0; i < out.sxv.size(); ++i) out.sxv.data()[i] = 2 * uniform(rng);
+        for (int i = 0; i < k; ++i) out.s[i] = 3.0f - i;
+        return out;
+    };
+    if (body == ubo2014::Body::kDfmf) {
+        for (int k : {3, 2, 1}) f.factors.push_back(factor(images, k));
+        if (colour_model == ubo2014::kColorModelRgb) f.factors[0].sxv.array() += 1.0f;
+    } else {
+        f.factors.push_back(factor(int64_t(images) * 3, 3));
+    }
+    return f;
+}
+
+TEST(DfmfImport, TheModelOfAFactorizationIsItsValueAtEverySample) {
+    struct Case {
+        ubo2014::Body body;
+        int32_t colour;
+        uint32_t drr;
+        factor::ColourBasis basis;
+    };
+    for (const Case& c :
+         {Case{ubo2014::Body::kDfmf, ubo2014::kColorModelRgb, 0, factor::ColourBasis::kPerChannel},
+          Case{ubo2014::Body::kDfmf, ubo2014::kColorModelLogYUV, 0,
+               factor::ColourBasis::kUboModel11},
+          Case{ubo2014::Body::kFmf, 0, 0, factor::ColourBasis::kRgb},
+          Case{ubo2014::Body::kFmf, 0, 1, factor::ColourBasis::kRgb}}) {
+        const ubo2014::Factorization f = random_ubo2014(c.body, c.colour, c.drr);
+        const factor::Model model = model_of(f, "x.btf");
+        EXPECT_EQ(model.colour.basis, c.basis);
+        EXPECT_EQ(model.colour.log, c.drr != 0);
+        // Through a package (float32 factors) as `btf convert` writes it.
+        const factor::FactorMaterial material(
+            factor::from_package(factor::to_package(model, "fmf", {}, factor::Quantization::kF32)));
+        double worst = 0;
+        for (int v = 0; v < f.sampling.num_views(); ++v)
+            for (int l = 0; l < f.sampling.num_lights(); ++l)
+                for (int y = 0; y < f.height; ++y)
+                    for (int x = 0; x < f.width; ++x) {
+                        const Rgb want = f.sample(x, y, v, l);
+                        const Rgb got = material.eval_sample(x, y, v, l);
+                        const float w[3] = {want.r, want.g, want.b}, g[3] = {got.r, got.g, got.b};
+                        for (int ch = 0; ch < 3; ++ch)
+                            worst = std::max(worst, std::abs(double(g[ch]) - w[ch]) /
+                                                        std::max(1e-3, std::abs(double(w[ch]))));
+                    }
+        EXPECT_LT(worst, 1e-5) << int(c.body) << " " << c.colour << " " << c.drr;
+    }
+}
+
+TEST(DfmfImport, CosineWeightedValuesAreRefusedNamingTheFile) {
+    ubo2014::Factorization f = random_ubo2014(ubo2014::Body::kDfmf, ubo2014::kColorModelLogYUV, 0);
+    f.meta.version = 2;
+    f.meta.cosine_flag = true;
+    EXPECT_THAT(test::error_of([&] { model_of(f, "x.btf"); }),
+                HasSubstr("x.btf: the values are multiplied by cos θ_light"));
 }
 
 }  // namespace
