@@ -454,5 +454,48 @@ TEST_F(BtfCli, ConvertToDfmfThroughFmf) {
     }
 }
 
+// A UBO2014 file's own factors as an fmf package: DFMF files of the repository's writer, colour
+// models 0 and 11 in half and float, evaluate like the file at sample directions and texel
+// centres (between them the package interpolates the colour planes, the file decoded values).
+TEST_F(BtfCli, ConvertsAUbo2014FileToAPackageWithoutRefactorizing) {
+    const std::string h5 = path("u.h5");
+    CliResult r = run("synth --preset leather --size 16 --seed 3 --sampling " +
+                      write_small_directions(path("dirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    for (const std::string colour : {"model11", "rgb"})
+        for (const std::string half : {"", " --half"}) {
+            SCOPED_TRACE(colour + half);
+            const std::string btf = path("u.btf"), pkg = path("u.btfpkg");
+            r = run("convert " + h5 + " " + btf + " --components 6 --colour " + colour + half);
+            ASSERT_EQ(r.code, 0) << r.output;
+            r = run("convert " + btf + " " + pkg);
+            ASSERT_EQ(r.code, 0) << r.output;
+            r = run("info " + pkg);
+            ASSERT_EQ(r.code, 0) << r.output;
+            EXPECT_NE(r.output.find("fmf"), std::string::npos) << r.output;
+            for (const char* query : {" --uv 0.03125,0.96875 --light 30,120 --view 0,0",
+                                      " --uv 0.53125,0.28125 --light 60,300 --view 30,240"}) {
+                const CliResult file = run("eval " + btf + query);
+                const CliResult package = run("eval " + pkg + query);
+                ASSERT_EQ(file.code, 0) << file.output;
+                ASSERT_EQ(package.code, 0) << package.output;
+                double a[3], b[3];
+                ASSERT_EQ(std::sscanf(file.output.c_str(), "%lf %lf %lf", &a[0], &a[1], &a[2]), 3);
+                ASSERT_EQ(std::sscanf(package.output.c_str(), "%lf %lf %lf", &b[0], &b[1], &b[2]),
+                          3);
+                for (int c = 0; c < 3; ++c)
+                    EXPECT_NEAR(b[c], a[c], 1e-4 * std::max(std::abs(a[c]), 1e-2)) << query;
+            }
+        }
+    // Other inputs: one line, no package.
+    r = run("convert " + h5 + " " + path("x.btfpkg"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("u.h5: btf convert writes a package only from a UBO2014 .btf file"),
+              std::string::npos)
+        << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(fs::exists(path("x.btfpkg")));
+}
+
 }  // namespace
 }  // namespace btf

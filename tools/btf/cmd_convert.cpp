@@ -1,13 +1,37 @@
 // btf convert IN OUT: any reader or package → btfkit HDF5 (.h5), UBO2014 DFMF (.btf) or a UTIA
-// image set.
+// image set; a UBO2014 .btf → an fmf package (.btfpkg) with its own factors.
 
 #include <cstdio>
 
 #include "btf/codecs/dfmf_export.h"
+#include "btf/io/package.h"
+#include "btf/io/ubo2014.h"
 #include "btf/util/error.h"
 #include "cli.h"
 
 namespace btf::cli {
+
+namespace {
+
+// A UBO2014 file's factors re-wrapped as an fmf package (seconds, no factorization).
+void convert_ubo2014_to_package(const std::string& input, const std::string& output,
+                                const std::string& views, const GlobalOptions& global) {
+    if (!ubo2014::probe(input)) {
+        if (!std::filesystem::exists(input)) fail("{}: no such file", input);
+        fail(
+            "{}: btf convert writes a package only from a UBO2014 .btf file, whose factors it "
+            "keeps; make one from other data with btf compress",
+            input);
+    }
+    if (!views.empty())
+        fail("{}: --views does not apply to a package of the file's own factors", input);
+    Progress progress = make_progress(global);
+    Package package = package_of(*ubo2014::read(input, progress), input);
+    write_package(output, package, {}, progress);
+    if (!global.quiet) std::printf("wrote %s\n", output.c_str());
+}
+
+}  // namespace
 
 Command register_convert(CLI::App& app, GlobalOptions& global) {
     struct Args {
@@ -22,7 +46,8 @@ Command register_convert(CLI::App& app, GlobalOptions& global) {
     CLI::App* cmd = app.add_subcommand(
         "convert",
         "Convert a BTF: to btfkit HDF5 (OUT ends in .h5), UBO2014 DFMF (OUT ends in "
-        ".btf) or a UTIA image set (any other OUT: a new folder)");
+        ".btf) or a UTIA image set (any other OUT: a new folder); a UBO2014 .btf to an fmf "
+        "package of its own factors, without refactorizing (OUT ends in .btfpkg)");
     cmd->add_option("input", args->input,
                     "BTF file or folder (any format btfkit reads, or a .btfpkg package)")
         ->required();
@@ -40,11 +65,15 @@ Command register_convert(CLI::App& app, GlobalOptions& global) {
 
     return {cmd, [args, &global] {
                 const OutputKind kind = output_kind(args->output);
+                if (kind == OutputKind::kPackage) {
+                    convert_ubo2014_to_package(args->input, args->output, args->views, global);
+                    return;
+                }
                 if (kind != OutputKind::kHdf5 && kind != OutputKind::kDfmf &&
                     kind != OutputKind::kFolder)
                     fail(
-                        "{}: unknown output type '{}': name a .h5 or .btf file, or a folder "
-                        "without an extension for a UTIA image set",
+                        "{}: unknown output type '{}': name a .h5, .btf or .btfpkg file, or a "
+                        "folder without an extension for a UTIA image set",
                         args->output, lower_extension(args->output));
                 const auto source = open_input(args->input, args->open, args->views);
                 Progress progress = make_progress(global);

@@ -99,6 +99,20 @@ factor::Model model_of(const ubo2014::Factorization& f, const std::string& what)
     return model;
 }
 
+Package package_of(const ubo2014::Factorization& f, const std::string& what) {
+    const factor::Model model = model_of(f, what);
+    bool half = true;
+    for (const ubo2014::Factor& factor : f.factors) half = half && factor.scalar_size == 2;
+    const factor::Quantization quantization =
+        half ? factor::Quantization::kF16 : factor::Quantization::kF32;
+    const nlohmann::json params = {{"from", f.signature()},
+                                   {"colour", factor::to_string(model.colour.basis)},
+                                   {"log", model.colour.log},
+                                   {"log-eps", model.colour.log_eps},
+                                   {"quantize", factor::to_string(quantization)}};
+    return factor::to_package(model, "fmf", params, quantization);
+}
+
 ubo2014::Factorization factorize_dfmf(const BtfSource& source, const DfmfExportOptions& options,
                                       Progress& progress) {
     const std::string name =

@@ -43,6 +43,11 @@ ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
 /// yet: one whose values were multiplied by cos θ_light (the meta block's cosine flag).
 factor::Model model_of(const ubo2014::Factorization& factorization, const std::string& what);
 
+/// The fmf package of model_of(`factorization`): its factors in half floats when the file holds
+/// half floats, else float32 (no rounding beyond the file's own); header parameters say where it
+/// came from ("from": the file's signature).
+Package package_of(const ubo2014::Factorization& factorization, const std::string& what);
+
 /// fmf::factorize (no mean subtraction) then to_dfmf().
 ubo2014::Factorization factorize_dfmf(const BtfSource& source, const DfmfExportOptions& options,
                                       Progress& progress = Progress::none());
