@@ -4,13 +4,14 @@
 // reference the shader is tested against).
 //
 // The viewer handles the models fmf writes: one view group, one texel cluster, one spatial level,
-// no angular levels; colour rgb (one plane of 3 channels), decorrelated or per-channel (3 planes
-// of 1 channel); with or without log; factors quantized f32, f16 or u8.
+// no angular levels; colour rgb (one plane of 3 channels), decorrelated, per-channel or model11
+// (UBO2014 DFMF colour model 11: log Y, U/Y, V/Y; 3 planes of 1 channel); with or without log;
+// factors quantized f32, f16 or u8.
 
 import { halfToFloat } from "./half";
 import type { Weights } from "./interp";
 
-export type ColourBasis = "rgb" | "decorrelated" | "per-channel";
+export type ColourBasis = "rgb" | "decorrelated" | "per-channel" | "model11";
 export type Quantization = "f32" | "f16" | "u8";
 
 /** The material is a valid package the viewer cannot render (another codec or model layout). */
@@ -89,9 +90,9 @@ function readFields(name: string, h: Record<string, unknown>): FmfInfo {
   const m = h.model as Record<string, unknown> | undefined;
   if (!m || typeof m !== "object") throw new Error("header field 'model' is missing");
   const colour = m.colour;
-  if (colour === "model11" || colour === "lab")
-    throw new UnsupportedMaterial(`${name}: colour '${colour}' is not supported by the viewer (rgb, decorrelated or per-channel)`);
-  if (colour !== "rgb" && colour !== "decorrelated" && colour !== "per-channel")
+  if (colour === "lab")
+    throw new UnsupportedMaterial(`${name}: colour '${colour}' is not supported by the viewer (rgb, decorrelated, per-channel or model11)`);
+  if (colour !== "rgb" && colour !== "decorrelated" && colour !== "per-channel" && colour !== "model11")
     throw new Error(`unknown colour handling ${JSON.stringify(colour)}`);
   if (typeof m.log !== "boolean") throw new Error("header field 'model.log' must be a boolean");
   if (typeof m.log_eps !== "number") throw new Error("header field 'model.log_eps' must be a number");
@@ -293,8 +294,17 @@ export function mipChain(layout: Layout, column: Float32Array): Float32Array[] {
 
 const DA = Math.fround(1 / Math.sqrt(3)), DB = Math.fround(1 / Math.sqrt(2)), DC = Math.fround(1 / Math.sqrt(6));
 
+/** eps of UBO2014 colour model 11 (kUboLogEps, core/color.h). */
+const UBO_LOG_EPS = Math.fround(1e-5);
+
 /** Plane values → linear RGB (ColourHandling::inverse). */
 export function inverseColour(info: FmfInfo, p: [number, number, number]): [number, number, number] {
+  if (info.colour === "model11") {
+    // ubo_model11_to_rgb: Y = exp(log Y) − eps, U and V from U/Y and V/Y, then YUV → RGB.
+    const y = Math.fround(Math.exp(p[0]) - UBO_LOG_EPS), s = y + UBO_LOG_EPS;
+    const u = p[1] * s, v = p[2] * s;
+    return [y + 1.13983 * v, y - 0.39465 * u - 0.5806 * v, y + 2.03211 * u];
+  }
   let v = p;
   if (info.colour === "decorrelated")
     v = [DA * p[0] + DB * p[1] + DC * p[2], DA * p[0] - DB * p[1] + DC * p[2], DA * p[0] - 2 * DC * p[2]];

@@ -383,7 +383,7 @@ export class MaterialView {
     // fmf: layers count once their component arrived; BSVTF: all of them, each a layer staying 0
     // until its U packet arrives.
     u.uLayerCount.value = bsvtf ? [0, 1, 2].map((p) => layout.layerCount[p] ?? 0) : [0, 0, 0];
-    u.uColour.value = info.colour === "rgb" ? 0 : info.colour === "decorrelated" ? 1 : 2;
+    u.uColour.value = { rgb: 0, decorrelated: 1, "per-channel": 2, model11: 3 }[info.colour];
     u.uLog.value = info.log ? 1 : 0;
     u.uLogEps.value = info.logEps;
     u.uSize.value = [info.width, info.height];

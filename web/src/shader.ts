@@ -114,7 +114,7 @@ uniform int uChannels;               // 3 (rgb) or 1
 uniform int uNL;                     // lights of the sampling (column uNL = environment)
 uniform ivec3 uLayerBase;            // first layer of each plane
 uniform ivec3 uLayerCount;           // layers holding loaded components, per plane
-uniform int uColour;                 // 0 rgb, 1 decorrelated, 2 per-channel
+uniform int uColour;                 // 0 rgb, 1 decorrelated, 2 per-channel, 3 model11
 uniform int uLog;
 uniform float uLogEps;
 uniform ivec2 uSize;                 // material width, height
@@ -341,6 +341,12 @@ vec4 sampleCached(vec2 uv, int level, int g) {
 #endif
 
 vec3 inverseColour(vec3 p) {
+  if (uColour == 3) {
+    // UBO2014 colour model 11 (log Y, U/Y, V/Y), eps 1e-5: ubo_model11_to_rgb.
+    const float eps = 1e-5;
+    float y = exp(p.x) - eps, u = p.y * (y + eps), w = p.z * (y + eps);
+    return vec3(y + 1.13983 * w, y - 0.39465 * u - 0.58060 * w, y + 2.03211 * u);
+  }
   vec3 v = p;
   if (uColour == 1) {
     const float a = 0.57735026919, b = 0.70710678118, c = 0.40824829046;

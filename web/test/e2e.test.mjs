@@ -13,7 +13,7 @@ import { ARTIFACTS, listEntry, makeFixtures, makeSite } from "./fixtures.mjs";
 import { startServer } from "./server.mjs";
 
 const SHOTS = path.join(ARTIFACTS, "e2e");
-const IDS = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_pca", "woven_broken"];
+const IDS = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_broken"];
 
 let fx, site, server, browser;
 
@@ -182,10 +182,11 @@ test("the WebSocket stream renders the same frame, and a cut socket resumes over
   }
 });
 
-test("colour variants, log, quantizations, the environment and several objects match the CPU reference", async () => {
+test("colour variants (UBO2014 model 11 too), log, quantizations, the environment and several objects match the CPU reference", async () => {
   const cases = [
     { name: "declog-env", query: "material=woven_declog&env=0.6&exposure=0.5" },
     { name: "two-objects", query: "objects=sphere:woven_perchannel@-1.3,0,0;torus:woven_fabric@1.3,0,0&camera=0,2.5,5.5&light=-1,2,1.5" },
+    { name: "ubo2014-model11", query: "material=woven_model11&light=1,2,1.5" },
     { name: "cylinder-uv", query: "material=woven_fabric&object=cylinder&uvscale=2,1&uvrot=30&lightpos=2,2,3&intensity=40&camera=0,0.5,5" },
   ];
   for (const c of cases) {

@@ -86,6 +86,15 @@ export function makeFixtures() {
       writeFileSync(stamp, JSON.stringify(args));
     }
   }
+  // A UBO2014 DFMF file in colour model 11 (the repository's writer) and its own factors as an
+  // fmf package (`btf convert X.btf X.btfpkg`, no refactorization).
+  const dfmf = path.join(FIXTURES, "woven_model11.btf");
+  const model11 = path.join(FIXTURES, "woven_model11.btfpkg");
+  if (!existsSync(model11)) {
+    run(bin, ["-q", "convert", h5, dfmf, "--components", "6", "--colour", "model11"]);
+    run(bin, ["-q", "convert", dfmf, model11]);
+  }
+  out.woven_model11 = model11;
   out.bsvtf = path.join(FIXTURES, "woven_fabric.bsvtf");
   out.bsvtfLossless = path.join(FIXTURES, "woven_lossless.bsvtf");
   // A package damaged in its third component section: the header and the first components read

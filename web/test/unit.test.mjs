@@ -172,7 +172,7 @@ const QUERIES = [
 ];
 
 test("the CPU evaluator matches `btf eval` for every colour, log and quantization variant", () => {
-  for (const id of ["woven_fabric", "woven_declog", "woven_perchannel"]) {
+  for (const id of ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11"]) {
     const { model, tables } = decode(fx.packages[id]);
     for (const q of QUERIES) {
       const wi = dirVec(...q.light), wo = dirVec(...q.view);
