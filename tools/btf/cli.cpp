@@ -6,14 +6,21 @@
 #include <charconv>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
 
+#include "btf/codecs/dfmf_export.h"
 #include "btf/codecs/material_source.h"
 #include "btf/io/h5.h"
 #include "btf/io/package.h"
+#include "btf/io/ubo2014.h"
 #include "btf/io/utia.h"
 #include "btf/util/error.h"
 
 namespace btf::cli {
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -206,6 +213,45 @@ void write_raw(const BtfSource& source, const std::string& output, OutputKind ki
     } else {
         fail("{}: not an HDF5 file or UTIA folder name", output);
     }
+}
+
+fs::path cache_folder() {
+    if (const char* dir = std::getenv("BTF_CACHE_DIR"); dir && *dir) return dir;
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg == '/')
+        return fs::path(xdg) / "btfkit";
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return fs::path(home) / ".cache" / "btfkit";
+    fail("no cache folder: set BTF_CACHE_DIR (or HOME)");
+}
+
+std::vector<fs::path> servable_inputs(const std::vector<std::string>& inputs,
+                                      const GlobalOptions& global) {
+    std::vector<fs::path> out;
+    for (const std::string& input : inputs) {
+        std::error_code ec;
+        if (!fs::is_regular_file(input, ec) || !ubo2014::probe(input)) {
+            out.emplace_back(input);
+            continue;
+        }
+        const fs::path canonical = fs::canonical(input, ec);
+        const auto size = fs::file_size(input, ec);
+        const auto time = fs::last_write_time(input, ec).time_since_epoch().count();
+        const size_t key = std::hash<std::string>{}(
+            fmt::format("{}\n{}\n{}", canonical.string(), size, int64_t(time)));
+        const fs::path package = cache_folder() / "ubo2014" / fmt::format("{:016x}", key) /
+                                 (fs::path(input).stem().string() + ".btfpkg");
+        if (!fs::exists(package, ec)) {
+            fs::create_directories(package.parent_path(), ec);
+            if (ec)
+                fail("{}: cannot create the cache folder: {}", package.parent_path().string(),
+                     ec.message());
+            Progress progress = make_progress(global);
+            Package converted = package_of(*ubo2014::read(input, progress), input);
+            write_package(package, converted, {}, progress);
+        }
+        out.push_back(package);
+    }
+    return out;
 }
 
 }  // namespace btf::cli

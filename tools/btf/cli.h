@@ -93,6 +93,15 @@ struct Command {
 };
 
 // One function per subcommand file: declares the options, returns the command.
+/// $BTF_CACHE_DIR, else $XDG_CACHE_HOME/btfkit (only an absolute path counts, as the XDG base
+/// directory rule says), else ~/.cache/btfkit.
+std::filesystem::path cache_folder();
+/// The inputs of `btf serve` and `btf bundle`, with each UBO2014 .btf file replaced by the fmf
+/// package of its own factors (as `btf convert X.btf X.btfpkg` writes it), made once per version
+/// of the file (path, size, modification time) into the cache folder and reused after.
+std::vector<std::filesystem::path> servable_inputs(const std::vector<std::string>& inputs,
+                                                   const GlobalOptions& global);
+
 Command register_info(CLI::App& app, GlobalOptions& global);
 Command register_convert(CLI::App& app, GlobalOptions& global);
 Command register_synth(CLI::App& app, GlobalOptions& global);

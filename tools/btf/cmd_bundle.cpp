@@ -23,7 +23,9 @@ Command register_bundle(CLI::App& app, GlobalOptions& global) {
         "bundle",
         "Write the web viewer and compressed materials as a static site (index.html, "
         "api/materials, materials/<id>.btfpkg) for any web server");
-    cmd->add_option("inputs", args->inputs, "btfkit packages (*.btfpkg) or folders of them")
+    cmd->add_option("inputs", args->inputs,
+                    "btfkit packages (*.btfpkg, *.bsvtf), UBO2014 .btf files or folders of "
+                    "packages")
         ->required();
     cmd->add_option("-o,--output", args->output, "site folder to create (new or empty)")
         ->required();
@@ -41,8 +43,8 @@ Command register_bundle(CLI::App& app, GlobalOptions& global) {
                 } else if (std::error_code ec; fs::is_directory(BTF_WEB_DIR, ec)) {
                     web_root = BTF_WEB_DIR;
                 }
-                std::vector<fs::path> inputs(args->inputs.begin(), args->inputs.end());
-                const stream::Catalog catalog = stream::Catalog::build(inputs);
+                const stream::Catalog catalog =
+                    stream::Catalog::build(servable_inputs(args->inputs, global));
                 Progress progress = make_progress(global);
                 const stream::BundleResult result =
                     stream::write_bundle(catalog, web_root, args->output, progress);

@@ -23,17 +23,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// $BTF_CACHE_DIR, else $XDG_CACHE_HOME/btfkit (the XDG base directory rule: only an absolute
-// path counts), else ~/.cache/btfkit.
-fs::path cache_folder() {
-    if (const char* dir = std::getenv("BTF_CACHE_DIR"); dir && *dir) return dir;
-    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg == '/')
-        return fs::path(xdg) / "btfkit";
-    if (const char* home = std::getenv("HOME"); home && *home)
-        return fs::path(home) / ".cache" / "btfkit";
-    fail("no cache folder for the demo material: set BTF_CACHE_DIR (or HOME)");
-}
-
 // The demo: woven_fabric, 128² texels, ubo81 sampling, fmf with 32 components in half floats
 // (about 2 MiB). Made on the first start (a minute or so) and reused afterwards; a damaged or
 // different cached file is made again.
@@ -86,7 +75,8 @@ Command register_serve(CLI::App& app, GlobalOptions& global) {
                            "Serve compressed materials to the web viewer over HTTP and WebSockets "
                            "(docs/protocol.md) until Ctrl-C");
     cmd->add_option("inputs", args->inputs,
-                    "btfkit packages (*.btfpkg) or folders of them; none: the built-in demo "
+                    "btfkit packages (*.btfpkg, *.bsvtf), UBO2014 .btf files or folders of "
+                    "packages; none: the built-in demo "
                     "material (woven_fabric, made once into the cache folder: $BTF_CACHE_DIR, "
                     "$XDG_CACHE_HOME/btfkit or ~/.cache/btfkit)");
     cmd->add_option("--port", args->port, "TCP port (0: any free port)")
@@ -110,7 +100,7 @@ Command register_serve(CLI::App& app, GlobalOptions& global) {
                     // The viewer's build output; until it is built, `/` shows the built-in page.
                     options.web_root = BTF_WEB_DIR;
                 }
-                std::vector<fs::path> inputs(args->inputs.begin(), args->inputs.end());
+                std::vector<fs::path> inputs = servable_inputs(args->inputs, global);
                 if (inputs.empty()) inputs.push_back(demo_package(global));
                 stream::Catalog catalog = stream::Catalog::build(inputs);
                 const size_t count = catalog.size();

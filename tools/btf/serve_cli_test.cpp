@@ -205,6 +205,34 @@ TEST(BundleCli, WritesTheStaticLayoutAndRefusesANonEmptyOutput) {
     EXPECT_FALSE(fs::exists(dir.path() / "other"));
 }
 
+// A UBO2014 file is bundled (and served) as the package of its own factors, made once into the
+// cache folder: the same bytes as `btf convert X.btf X.btfpkg`.
+TEST(BundleCli, AUbo2014FileIsBundledAsThePackageOfItsFactors) {
+    TempFolder dir;
+    const std::string h5 = (dir.path() / "m.h5").string(), btf = (dir.path() / "wool.btf").string();
+    ASSERT_EQ(run("synth --preset woven_fabric --size 8 -o " + h5).code, 0);
+    ASSERT_EQ(run("convert " + h5 + " " + btf + " --components 4 --colour model11").code, 0);
+    const std::string pkg = (dir.path() / "wool.btfpkg").string();
+    ASSERT_EQ(run("convert " + btf + " " + pkg).code, 0);
+    const std::string cache = "export BTF_CACHE_DIR='" + (dir.path() / "cache").string() + "'";
+    for (const char* site : {"site1", "site2"}) {  // the second reuses the cached package
+        const CliResult r =
+            run(fmt::format("bundle '{}' -o '{}' --web '{}'", btf, (dir.path() / site).string(),
+                            (dir.path() / "no-viewer").string()),
+                "mkdir -p '" + (dir.path() / "no-viewer").string() + "' && " + cache);
+        ASSERT_EQ(r.code, 0) << r.output;
+        EXPECT_EQ(read_file(dir.path() / site / "materials" / "wool.btfpkg"), read_file(pkg));
+        const json list = json::parse(read_file(dir.path() / site / "api" / "materials"));
+        ASSERT_EQ(list.at("materials").size(), 1u);
+        EXPECT_EQ(list["materials"][0].at("id"), "wool");
+        EXPECT_EQ(list["materials"][0].at("codec"), "fmf");
+    }
+    size_t cached = 0;
+    for (const auto& e : fs::recursive_directory_iterator(dir.path() / "cache"))
+        cached += e.is_regular_file();
+    EXPECT_EQ(cached, 1u);
+}
+
 TEST(ServeCli, BadPackageGivesOneLineAndExitOne) {
     TempFolder dir;
     const fs::path missing = dir.path() / "missing.btfpkg";
