@@ -1,11 +1,13 @@
 // BSVTF files (bsvtf/file.h): read_bsvtf() on any package (checksums recomputed by the package
 // mutator), then what a renderer does with it: decode tiles coarsest first, each against its
-// decoded parent, and evaluate the material from the angular factors and the coarsest tiles.
+// decoded parent, and evaluate the material from the angular factors and the coarsest tiles; for
+// small files also the material every command opens (bsvtf/material.h: every tile decoded).
 #include <map>
 #include <optional>
 
 #include "btf/bsvtf/evaluator.h"
 #include "btf/bsvtf/file.h"
+#include "btf/bsvtf/material.h"
 #include "btf/bsvtf/tile_codec.h"
 #include "fuzz/support/fuzz.h"
 #include "fuzz/support/package_mutator.h"
@@ -57,5 +59,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
                 return sample_tile(tile->second, g, coarsest, 0, 0.5f, 0, 0.5f);
             });
         }
+        if (layout.tile_count() <= kMaxTiles)
+            fuzz::exercise(*bsvtf::open_material(package, "input"));
     });
 }

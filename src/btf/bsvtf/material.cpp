@@ -36,11 +36,16 @@ std::vector<uint16_t> decode_tiles(const Bsvtf& file, const std::string& what, P
     return decoded;
 }
 
-factor::Model finest_model(const Bsvtf& file, const std::vector<uint16_t>& decoded) {
+factor::Model finest_model(const Bsvtf& file, const std::vector<uint16_t>& decoded,
+                           const std::string& what) {
     const TileLayout& layout = file.layout;
     const TileGeometry& g = layout.geometry();
     factor::Model model = file.model;
     const int64_t texels = int64_t(model.width) * model.height;
+    int64_t components = 0;
+    for (const factor::Block& block : model.blocks) components += block.components();
+    check_alloc(checked_bytes(uint64_t(texels) * uint64_t(components), 4).value_or(UINT64_MAX),
+                what, "the eigen-textures");
     for (int plane = 0; plane < model.colour.planes(); ++plane) {
         factor::Block& block = model.blocks[size_t(model.block_index(plane, 0, 0))];
         block.b = factor::Matrix::Zero(texels, block.components());
@@ -76,7 +81,8 @@ factor::Model finest_model(const Bsvtf& file, const std::vector<uint16_t>& decod
 
 std::unique_ptr<Material> open_material(const Package& package, const std::string& what) {
     const Bsvtf file = read_bsvtf(package, what);
-    return std::make_unique<factor::FactorMaterial>(finest_model(file, decode_tiles(file, what)));
+    return std::make_unique<factor::FactorMaterial>(
+        finest_model(file, decode_tiles(file, what), what));
 }
 
 }  // namespace btf::bsvtf

@@ -23,8 +23,10 @@ namespace btf::bsvtf {
 std::vector<uint16_t> decode_tiles(const Bsvtf& file, const std::string& what,
                                    Progress& progress = Progress::none());
 
-/// The fmf model of `file` with each block's b filled from the finest tiles of `decoded`.
-factor::Model finest_model(const Bsvtf& file, const std::vector<uint16_t>& decoded);
+/// The fmf model of `file` with each block's b filled from the finest tiles of `decoded`; throws
+/// btf::Error naming `what` when the eigen-textures would exceed the allocation limit.
+factor::Model finest_model(const Bsvtf& file, const std::vector<uint16_t>& decoded,
+                           const std::string& what);
 
 /// read_bsvtf(), decode_tiles() and finest_model() as a FactorMaterial; `what` names the file
 /// in errors.
