@@ -224,6 +224,13 @@ fs::path cache_folder() {
     fail("no cache folder: set BTF_CACHE_DIR (or HOME)");
 }
 
+void write_ubo2014_package(const std::string& input, const fs::path& output,
+                           const GlobalOptions& global) {
+    Progress progress = make_progress(global);
+    Package package = package_of(*ubo2014::read(input, progress), input);
+    write_package(output, package, {}, progress);
+}
+
 std::vector<fs::path> servable_inputs(const std::vector<std::string>& inputs,
                                       const GlobalOptions& global) {
     std::vector<fs::path> out;
@@ -245,9 +252,7 @@ std::vector<fs::path> servable_inputs(const std::vector<std::string>& inputs,
             if (ec)
                 fail("{}: cannot create the cache folder: {}", package.parent_path().string(),
                      ec.message());
-            Progress progress = make_progress(global);
-            Package converted = package_of(*ubo2014::read(input, progress), input);
-            write_package(package, converted, {}, progress);
+            write_ubo2014_package(input, package, global);
         }
         out.push_back(package);
     }

@@ -96,6 +96,10 @@ struct Command {
 /// $BTF_CACHE_DIR, else $XDG_CACHE_HOME/btfkit (only an absolute path counts, as the XDG base
 /// directory rule says), else ~/.cache/btfkit.
 std::filesystem::path cache_folder();
+/// Writes the fmf package of the UBO2014 file `input`'s own factors to `output` (dfmf_export.h,
+/// package_of): `btf convert X.btf X.btfpkg`, and what serve and bundle make of a .btf input.
+void write_ubo2014_package(const std::string& input, const std::filesystem::path& output,
+                           const GlobalOptions& global);
 /// The inputs of `btf serve` and `btf bundle`, with each UBO2014 .btf file replaced by the fmf
 /// package of its own factors (as `btf convert X.btf X.btfpkg` writes it), made once per version
 /// of the file (path, size, modification time) into the cache folder and reused after.

@@ -4,7 +4,6 @@
 #include <cstdio>
 
 #include "btf/codecs/dfmf_export.h"
-#include "btf/io/package.h"
 #include "btf/io/ubo2014.h"
 #include "btf/util/error.h"
 #include "cli.h"
@@ -25,9 +24,7 @@ void convert_ubo2014_to_package(const std::string& input, const std::string& out
     }
     if (!views.empty())
         fail("{}: --views does not apply to a package of the file's own factors", input);
-    Progress progress = make_progress(global);
-    Package package = package_of(*ubo2014::read(input, progress), input);
-    write_package(output, package, {}, progress);
+    write_ubo2014_package(input, output, global);
     if (!global.quiet) std::printf("wrote %s\n", output.c_str());
 }
 
