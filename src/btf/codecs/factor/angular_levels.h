@@ -56,6 +56,10 @@ class AngularResampler {
     Eigen::MatrixXd upsample(const Eigen::MatrixXd& coarse) const;
     /// coarse = D · full = argmin_c ‖U c − full‖, for every column.
     Eigen::MatrixXd downsample(const Eigen::MatrixXd& full) const;
+    /// U of the views (views × level views) and of the lights (lights × level lights): at most
+    /// three non-zero barycentric weights per row.
+    const Eigen::MatrixXd& up_views() const { return m_up_views; }
+    const Eigen::MatrixXd& up_lights() const { return m_up_lights; }
 
   private:
     // y (rows (i · m_l + j) · channels + c) = (A ⊗ B) x, with A: rows_a × cols_a over views and

@@ -315,6 +315,20 @@ void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
     append(out, t.cell_triangles.data(), t.cell_triangles.size());
 }
 
+// The viewer's copy of the angular levels' up-sampling (section "angular"): per level, U of the
+// views then U of the lights, float32 row-major.
+void append_upsampling(std::vector<uint8_t>& out, const Model& model) {
+    for (const AngularLevel& level : model.angular_levels) {
+        const AngularResampler r(model.sampling, level, model.colour.channels());
+        for (const Eigen::MatrixXd* u : {&r.up_views(), &r.up_lights()})
+            for (Eigen::Index i = 0; i < u->rows(); ++i)
+                for (Eigen::Index j = 0; j < u->cols(); ++j) {
+                    const float w = float((*u)(i, j));
+                    append(out, &w, 1);
+                }
+    }
+}
+
 void put_column(std::vector<uint8_t>& out, Quantization q, const float* v, int64_t n,
                 int64_t stride) {
     switch (q) {
@@ -458,6 +472,11 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     append_tables(tables.data, model.sampling.views);
     append_tables(tables.data, model.sampling.lights);
     package.sections.push_back(std::move(tables));
+    if (!model.angular_levels.empty()) {
+        PackageSection angular = named_section("angular");
+        append_upsampling(angular.data, model);
+        package.sections.push_back(std::move(angular));
+    }
     if (model.clusters > 1) {
         PackageSection clusters = named_section("clusters");
         append(clusters.data, model.texel_cluster.data(), model.texel_cluster.size());
@@ -614,7 +633,8 @@ Model from_package(const Package& package) {
             char tail = 0;
             if (std::sscanf(s.name.c_str(), "b%d.k%d%c", &block, &k, &tail) != 2 ||
                 s.name != component_name(block, k)) {
-                if (s.name != "tables" && s.name != "clusters" && s.name != "means")
+                if (s.name != "tables" && s.name != "angular" && s.name != "clusters" &&
+                    s.name != "means")
                     fail("unknown section '{}'", s.name);
                 continue;
             }
@@ -666,6 +686,15 @@ Model from_package(const Package& package) {
                     "section 'tables' ({} bytes) is not the tables of the header's directions ({} "
                     "bytes)",
                     tables->data.size(), expected.size());
+        }
+        if (const PackageSection* angular = package.find("angular")) {
+            std::vector<uint8_t> expected;
+            if (!model.angular_levels.empty()) append_upsampling(expected, model);
+            if (angular->data != expected)
+                fail(
+                    "section 'angular' ({} bytes) is not the up-sampling of the header's angular "
+                    "levels ({} bytes)",
+                    angular->data.size(), expected.size());
         }
         model.validate(what);
         return model;

@@ -1,8 +1,10 @@
 #include "btf/codecs/perceptual/perceptual.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <set>
@@ -635,8 +637,11 @@ TEST(PerceptualOmission, PrefixesOfAMultiLevelPackageOpen) {
     const BtfSource& source = fabric();
     const Package full =
         encode(source, Params({{"components", "10"}, {"quality", "0.7"}, {"quantize", "f32"}}));
+    // Sections: tables, angular (the up-sampling of the angular levels), means, components.
+    ASSERT_EQ(full.sections[1].name, "angular");
+    ASSERT_EQ(full.sections[2].name, "means");
     double previous = INFINITY;
-    for (int n = 2; n <= full.declared_sections; ++n) {
+    for (int n = 3; n <= full.declared_sections; ++n) {
         Package prefix = full;
         prefix.sections.resize(n);
         const auto material = perceptual_codec().open(prefix);
@@ -644,6 +649,34 @@ TEST(PerceptualOmission, PrefixesOfAMultiLevelPackageOpen) {
         EXPECT_LT(e, previous) << n;
         previous = e;
     }
+}
+
+TEST(PerceptualOmission, TheAngularSectionIsTheUpSamplingOfTheHeadersLevels) {
+    const Package full = encode(fabric(), Params({{"components", "6"}, {"quality", "0.7"}}));
+    const factor::Model model = factor::from_package(full);
+    ASSERT_FALSE(model.angular_levels.empty());
+    const PackageSection* angular = full.find("angular");
+    ASSERT_NE(angular, nullptr);
+    // Per level: U of the views, then of the lights, float32; each row a partition of unity.
+    size_t at = 0;
+    for (const factor::AngularLevel& level : model.angular_levels)
+        for (const auto& [full_count, kept] :
+             {std::pair{model.sampling.num_views(), level.views.size()},
+              std::pair{model.sampling.num_lights(), level.lights.size()}})
+            for (int i = 0; i < full_count; ++i) {
+                float sum = 0;
+                for (size_t j = 0; j < kept; ++j, at += 4) {
+                    float w;
+                    std::memcpy(&w, angular->data.data() + at, 4);
+                    sum += w;
+                }
+                EXPECT_NEAR(sum, 1.0f, 1e-5f);
+            }
+    EXPECT_EQ(at, angular->data.size());
+    Package damaged = full;
+    damaged.sections[1].data[4] ^= 0x40;
+    EXPECT_THAT(test::error_of([&] { perceptual_codec().open(damaged); }),
+                testing::HasSubstr("section 'angular'"));
 }
 
 TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
