@@ -4,7 +4,7 @@
 // test replays the C++ decisions recorded in web/test/data/cache-trace.json. Levels count from the
 // finest (0); the paper's l is L − j.
 
-import { wrapLerp } from "./fmf";
+import { wrapLerp } from "./factor";
 
 export interface TileId {
   group: number;

@@ -5,18 +5,20 @@
 import * as THREE from "three";
 import type { BsvtfInfo, TileIndex } from "./bsvtf";
 import { TileLayout } from "./cache";
-import type { FmfInfo, Layout } from "./fmf";
+import { FACTOR_CODECS, type FactorInfo, type Layout } from "./factor";
 import type { FromWorker, InterpUniforms, ToWorker } from "./protocol";
 import { TABLE_WIDTH } from "./protocol";
-import { MAX_TILE_LEVELS } from "./shader";
+import { MAX_TILE_LEVELS, factorPart } from "./shader";
 import { fetchRange, openStream, type MaterialEntry } from "./stream";
 
 export interface MaterialState {
   id: string;
   bytes: number;
   total: number;
+  /** Parts present and in all, counted in `unit` (components; P6 levels for mlvq). */
   components: number;
   totalComponents: number;
+  unit: string;
   /** Tables and at least one component (or the whole stream) are on the GPU: objects render. */
   ready: boolean;
   /** The stream ended (completely or at a section boundary). */
@@ -41,14 +43,19 @@ export interface GpuLimits {
   maxArrayLayers: number;
 }
 
+/** The codecs whose packages the viewer renders. */
+export const VIEWER_CODECS: string[] = [...FACTOR_CODECS, "mlvq", "bsvtf"];
+
 const emptyInterp = (): InterpUniforms => ({ R: 1, N: 1, T: 0, lifted: 0, triBase: 0, offBase: 0, cellBase: 0, invBase: 0 });
 
 export class MaterialView {
   readonly state: MaterialState;
   /** Shared by the ShaderMaterials of every object showing this material. */
   readonly uniforms: Record<string, THREE.IUniform>;
-  info: FmfInfo | null = null;
+  info: FactorInfo | null = null;
   layout: Layout | null = null;
+  /** The codec part of the surface's fragment shader (shader.ts). */
+  readonly codecPart: string = factorPart;
   /** Called when something changed that a new frame would show. */
   onChange: () => void = () => {};
   /** Called when bytes arrived (for the HUD; nothing to draw yet). */
@@ -63,6 +70,9 @@ export class MaterialView {
   private means: THREE.DataArrayTexture | null = null;
   private tabF: THREE.DataTexture | null = null;
   private tabI: THREE.DataTexture | null = null;
+  private blocks: THREE.DataTexture | null = null;
+  private viewGroup: THREE.DataTexture | null = null;
+  private texelCluster: THREE.DataTexture | null = null;
   private haveTables = false;
   /** BSVTF packages: the tile fields, layout and index (docs/bsvtf.md); null for fmf. */
   bsvtf: { info: BsvtfInfo; layout: TileLayout; index: TileIndex | null; indirection: THREE.DataTexture } | null = null;
@@ -86,6 +96,7 @@ export class MaterialView {
       total: entry.bytes ?? 0,
       components: 0,
       totalComponents: 0,
+      unit: "components",
       times: { start: performance.now(), ready: null, received: null, decoded: null },
       ready: false,
       done: false,
@@ -108,8 +119,11 @@ export class MaterialView {
       uPlanes: { value: 1 },
       uChannels: { value: 3 },
       uNL: { value: 1 },
-      uLayerBase: { value: [0, 0, 0] },
-      uLayerCount: { value: [0, 0, 0] },
+      uBlocks: { value: null },
+      uViewGroup: { value: null },
+      uTexelCluster: { value: null },
+      uGroups: { value: 1 },
+      uClusters: { value: 1 },
       uColour: { value: 0 },
       uLog: { value: 0 },
       uLogEps: { value: 0.001 },
@@ -128,10 +142,10 @@ export class MaterialView {
         uLevelBase: { value: new Array(MAX_TILE_LEVELS).fill(0) },
         uTilesX: { value: new Array(MAX_TILE_LEVELS).fill(1) },
       });
-    if (entry.codec && entry.codec !== "fmf" && entry.codec !== "bsvtf") {
+    if (entry.codec && !VIEWER_CODECS.includes(entry.codec)) {
       // The list says so already: no need to download the package to refuse it.
       this.state.unsupported = true;
-      this.state.error = `${entry.id}: codec '${entry.codec}' is not supported by the viewer (it renders fmf packages: btf compress --codec fmf)`;
+      this.state.error = `${entry.id}: codec '${entry.codec}' is not supported by the viewer (it renders ${VIEWER_CODECS.join(", ")} packages)`;
       this.state.done = true;
       return;
     }
@@ -273,7 +287,7 @@ export class MaterialView {
     if (msg.type !== "header" && !this.info) return;
     switch (msg.type) {
       case "header":
-        return this.applyHeader(msg.info, msg.layout, msg.totalBytes, msg.bsvtf);
+        return this.applyHeader(msg.info, msg.layout, msg.blocks, msg.totalBytes, msg.bsvtf);
       case "tables": {
         this.tabF = new THREE.DataTexture(msg.tabF, TABLE_WIDTH, msg.tabFHeight, THREE.RGBAFormat, THREE.FloatType);
         this.tabI = new THREE.DataTexture(msg.tabI, TABLE_WIDTH, msg.tabIHeight, THREE.RGBAIntegerFormat, THREE.IntType);
@@ -297,22 +311,28 @@ export class MaterialView {
         tex.needsUpdate = true;
         return;
       }
+      case "clusters": {
+        const tex = this.texelCluster!;
+        (tex.image.data as Int32Array).set(msg.data);
+        tex.needsUpdate = true;
+        return;
+      }
       case "component": {
         const L = this.layout!;
         const aSize = L.aWidth * L.aHeight * 4, bSize = L.atlasWidth * L.atlasHeight * 4;
-        (this.a!.image.data as Float32Array).set(msg.aLayer, msg.layer * aSize);
-        this.a!.addLayerUpdate(msg.layer);
+        (this.a!.image.data as Float32Array).set(msg.aLayer, msg.aIndex * aSize);
+        this.a!.addLayerUpdate(msg.aIndex);
         this.a!.needsUpdate = true;
         if (msg.bLayer) {
-          (this.b!.image.data as Float32Array | Uint16Array).set(msg.bLayer, msg.layer * bSize);
-          this.b!.addLayerUpdate(msg.layer);
+          (this.b!.image.data as Float32Array | Uint16Array).set(msg.bLayer, msg.bIndex * bSize);
+          this.b!.addLayerUpdate(msg.bIndex);
           this.b!.needsUpdate = true;
-          const counts = this.uniforms.uLayerCount.value as number[];
-          counts[msg.plane] = Math.max(counts[msg.plane], (msg.k >> 2) + 1);
         }
+        (this.blocks!.image.data as Int32Array).set(msg.blocks);
+        this.blocks!.needsUpdate = true;
         this.state.components = msg.loaded;
         this.state.applied.push(msg.name);
-        if (this.haveTables && !this.bsvtf) this.markReady();
+        if (this.haveTables && !this.bsvtf && this.firstPicture(msg.blocks)) this.markReady();
         return;
       }
       case "tileIndex": {
@@ -331,12 +351,22 @@ export class MaterialView {
     }
   }
 
+  // Whether the components so far make a first picture: any component, and with several view
+  // groups (pca-views, the thesis' progressive order) the first component of every group's
+  // blocks, so that no view shows its mean alone.
+  private firstPicture(blocks: Int32Array): boolean {
+    const info = this.info!, layout = this.layout!;
+    if (info.groups.length === 1) return true;
+    for (let e = 0; e < layout.evalBlocks; ++e) if (layout.aCapacity[e] > 0 && blocks[4 * e + 1] === 0) return false;
+    return true;
+  }
+
   private markReady(): void {
     this.state.ready = true;
     this.state.times.ready ??= performance.now();
   }
 
-  private applyHeader(info: FmfInfo, layout: Layout, totalBytes: number, bsvtf: BsvtfInfo | null): void {
+  private applyHeader(info: FactorInfo, layout: Layout, blocks: Int32Array, totalBytes: number, bsvtf: BsvtfInfo | null): void {
     const { maxTextureSize, maxArrayLayers } = this.limits;
     // A BSVTF material has no eigen-texture atlas: the page's tile cache holds its tiles.
     const atlas = bsvtf ? 0 : Math.max(layout.atlasWidth, layout.atlasHeight);
@@ -345,15 +375,15 @@ export class MaterialView {
         `${info.name}: ${info.width}×${info.height} texels with ${info.nV} views × ${info.nL} lights need textures larger than this GPU's ${maxTextureSize} texels`,
         true,
       );
-    if (layout.layers > maxArrayLayers)
-      return this.setError(`${info.name}: ${info.totalComponents} components need ${layout.layers} texture layers, more than this GPU's ${maxArrayLayers}`, true);
+    const layers = Math.max(layout.aLayers, layout.bLayers, layout.meanLayers);
+    if (layers > maxArrayLayers)
+      return this.setError(`${info.name}: ${info.totalComponents} components need ${layers} texture layers, more than this GPU's ${maxArrayLayers}`, true);
     if (bsvtf && !this.applyTileHeader(info, bsvtf)) return;
     this.info = info;
     this.layout = layout;
     this.state.total = bsvtf ? (this.entry.bytes ?? totalBytes) : totalBytes;
     this.state.totalComponents = info.totalComponents;
-    this.state.codec = bsvtf ? "bsvtf" : "fmf";
-    const layers = layout.layers;
+    this.state.codec = bsvtf ? "bsvtf" : info.codec;
     const make = (data: Float32Array | Uint16Array, w: number, h: number, d: number, format: THREE.PixelFormat, type: THREE.TextureDataType) => {
       const t = new THREE.DataArrayTexture(data, w, h, d);
       t.format = format;
@@ -364,14 +394,32 @@ export class MaterialView {
       t.needsUpdate = true;
       return t;
     };
-    this.a = make(new Float32Array(layout.aWidth * layout.aHeight * 4 * layers), layout.aWidth, layout.aHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+    this.a = make(new Float32Array(layout.aWidth * layout.aHeight * 4 * layout.aLayers), layout.aWidth, layout.aHeight, layout.aLayers, THREE.RGBAFormat, THREE.FloatType);
     if (!bsvtf) {
-      const bSize = layout.atlasWidth * layout.atlasHeight * 4 * layers;
+      const bSize = layout.atlasWidth * layout.atlasHeight * 4 * layout.bLayers;
       this.b = layout.half
-        ? make(new Uint16Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.HalfFloatType)
-        : make(new Float32Array(bSize), layout.atlasWidth, layout.atlasHeight, layers, THREE.RGBAFormat, THREE.FloatType);
+        ? make(new Uint16Array(bSize), layout.atlasWidth, layout.atlasHeight, layout.bLayers, THREE.RGBAFormat, THREE.HalfFloatType)
+        : make(new Float32Array(bSize), layout.atlasWidth, layout.atlasHeight, layout.bLayers, THREE.RGBAFormat, THREE.FloatType);
     }
-    this.means = make(new Float32Array(layout.aWidth * layout.aHeight * info.planes), layout.aWidth, layout.aHeight, info.planes, THREE.RedFormat, THREE.FloatType);
+    this.means = make(new Float32Array(layout.aWidth * layout.aHeight * layout.meanLayers), layout.aWidth, layout.aHeight, layout.meanLayers, THREE.RedFormat, THREE.FloatType);
+    // Integer lookup tables: the block table, each view's group, each texel's cluster.
+    const table = (data: Int32Array, w: number, h: number, rgba: boolean) => {
+      const t = new THREE.DataTexture(data, w, h, rgba ? THREE.RGBAIntegerFormat : THREE.RedIntegerFormat, THREE.IntType);
+      t.internalFormat = rgba ? "RGBA32I" : "R32I";
+      t.minFilter = t.magFilter = THREE.NearestFilter;
+      t.generateMipmaps = false;
+      t.unpackAlignment = 1;
+      t.needsUpdate = true;
+      return t;
+    };
+    const rows = (n: number) => Math.max(1, Math.ceil(n / TABLE_WIDTH));
+    const blockData = new Int32Array(TABLE_WIDTH * rows(layout.evalBlocks) * 4);
+    blockData.set(blocks);
+    this.blocks = table(blockData, TABLE_WIDTH, rows(layout.evalBlocks), true);
+    const groupData = new Int32Array(TABLE_WIDTH * rows(info.nV));
+    groupData.set(info.groupOfView);
+    this.viewGroup = table(groupData, TABLE_WIDTH, rows(info.nV), false);
+    this.texelCluster = info.clusters > 1 ? table(new Int32Array(info.width * info.height), info.width, info.height, false) : table(new Int32Array(1), 1, 1, false);
     const u = this.uniforms;
     u.uA.value = this.a;
     u.uB.value = this.b;
@@ -379,11 +427,12 @@ export class MaterialView {
     u.uPlanes.value = info.planes;
     u.uChannels.value = info.channels;
     u.uNL.value = info.nL;
-    u.uLayerBase.value = [layout.layerBase[0] ?? 0, layout.layerBase[1] ?? 0, layout.layerBase[2] ?? 0];
-    // fmf: layers count once their component arrived; BSVTF: all of them, each a layer staying 0
-    // until its U packet arrives.
-    u.uLayerCount.value = bsvtf ? [0, 1, 2].map((p) => layout.layerCount[p] ?? 0) : [0, 0, 0];
-    u.uColour.value = { rgb: 0, decorrelated: 1, "per-channel": 2, model11: 3 }[info.colour];
+    u.uBlocks.value = this.blocks;
+    u.uViewGroup.value = this.viewGroup;
+    u.uTexelCluster.value = this.texelCluster;
+    u.uGroups.value = info.groups.length;
+    u.uClusters.value = info.clusters;
+    u.uColour.value = { rgb: 0, decorrelated: 1, "per-channel": 2, model11: 3, lab: 4 }[info.colour];
     u.uLog.value = info.log ? 1 : 0;
     u.uLogEps.value = info.logEps;
     u.uSize.value = [info.width, info.height];
@@ -393,7 +442,7 @@ export class MaterialView {
   // A BSVTF package's tile layout, its indirection texture (tile index → cache layer) and the
   // uniforms the shader's cache lookup reads; false (and the material's error) when the viewer
   // cannot show it.
-  private applyTileHeader(info: FmfInfo, b: BsvtfInfo): boolean {
+  private applyTileHeader(info: FactorInfo, b: BsvtfInfo): boolean {
     const tiles = new TileLayout(b.width, b.height, b.tile, b.pad, b.groups);
     if (tiles.levels > MAX_TILE_LEVELS) {
       this.setError(`${info.name}: ${tiles.levels} tile levels, more than the viewer's ${MAX_TILE_LEVELS}`, true);
@@ -441,6 +490,6 @@ export class MaterialView {
   dispose(): void {
     this.stop?.();
     this.worker?.terminate();
-    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI, this.bsvtf?.indirection]) t?.dispose();
+    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI, this.blocks, this.viewGroup, this.texelCluster, this.bsvtf?.indirection]) t?.dispose();
   }
 }

@@ -1,7 +1,7 @@
 // Messages between the page and the decoding worker (one worker per material).
 
 import type { BsvtfInfo } from "./bsvtf";
-import type { FmfInfo, Layout } from "./fmf";
+import type { FactorInfo, Layout } from "./factor";
 
 /** Uniform values that locate one direction set's tables in the table textures. */
 export interface InterpUniforms {
@@ -39,8 +39,10 @@ export type ToWorker =
 export type FromWorker =
   | {
       type: "header";
-      info: FmfInfo;
+      info: FactorInfo;
       layout: Layout;
+      /** Per eval block: aBase, layers holding loaded components, bBase, means layer. */
+      blocks: Int32Array;
       totalBytes: number;
       sections: { name: string; offset: number; size: number }[];
       /** Set for a BSVTF package: the eigen-textures come as tiles, not in component sections. */
@@ -62,15 +64,19 @@ export type FromWorker =
       envScale: number;
     }
   | { type: "means"; data: Float32Array }
+  /** The cluster of each texel (models with several texel clusters). */
+  | { type: "clusters"; data: Int32Array }
   | {
       type: "component";
       name: string;
-      plane: number;
-      k: number;
-      layer: number;
+      /** The a-texture layer the component is in, and its content. */
+      aIndex: number;
       aLayer: Float32Array;
-      /** null for a BSVTF U packet (the tiles hold b). */
+      /** The b-texture layer and its content; −1 and null for a BSVTF U packet (the tiles hold b). */
+      bIndex: number;
       bLayer: Float32Array | Uint16Array | null;
+      /** The block table after this component. */
+      blocks: Int32Array;
       loaded: number;
     }
   | { type: "section"; name: string; index: number; end: number }

@@ -1,10 +1,19 @@
-// GLSL ES 3.00 of the BTF surface: the fragment shader evaluates the fmf factor model the way
-// src/btf/codecs/factor/material.cpp does (bilinear in space with wrapping and texel centres at
-// (i + 0.5) / W, barycentric over ≤ 3 views × ≤ 3 lights found through the AngularInterpolator
-// grid of docs/interpolation.md, interpolation on the plane values, then the inverse colour
-// transform), shades like the C++ path tracer's next-event estimation (src/btf/render/
-// integrator.cpp: radiance = f · E / π per delta light, the local frame of scene.cpp) and tone
-// maps like quality::tone_map (exposure, the ACES fit, then sRGB).
+// GLSL ES 3.00 of the BTF surface. The fragment shader is one shared part — the shading frame of
+// scene.cpp, the lights, shading like the C++ path tracer's next-event estimation
+// (src/btf/render/integrator.cpp: radiance = f · E / π per delta light, plus a uniform
+// environment), tone mapping like quality::tone_map (exposure, the ACES fit, then sRGB) — and one
+// codec part, which declares its own uniforms and textures and defines
+//
+//   void codecEvaluate(vec2 uv, vec2 sx, vec2 sy, vec3 wo, vec3 wi[MAX_LIGHTS], bool lit[MAX_LIGHTS],
+//                      int lightCount, bool env, out vec3 value[MAX_LIGHTS], out vec3 ambient);
+//
+// the material's value (linear RGB, before clamping) at mapped uv for the view direction wo and
+// each lit light direction wi[i] (local frame), and with env the uniform environment's value
+// ((1/π) ∫ f dωi); sx and sy are the pixel's footprint in level-0 texels, for codecs that filter.
+// The part may use MAX_LIGHTS, PI, tableTexel (index → texel of a TABLE_WIDTH-wide table) and
+// wrapLerp (wrap_lerp of btf_lookup.h). A codec added later only needs its decoder module and
+// such a part: factorPart here (fmf, pca-views, lpca, perceptual; bsvtf with BSVTF defined), and
+// mlvqFragment in mlvq.ts.
 
 export const MAX_LIGHTS = 4;
 
@@ -53,19 +62,20 @@ void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
 /** The most tile levels a BSVTF material may have (textures up to 2^(MAX_TILE_LEVELS − 1) tiles). */
 export const MAX_TILE_LEVELS = 16;
 
-// Shared by the surface and the feedback shaders: the object's uv mapping and the pixel's
-// footprint, and the tile level a footprint needs.
-const uvFunctions = /* glsl */ `
+
 // The object's uv mapping, uv' = R(rotation) · (u · su, v · sv) (scene.cpp), and the screen
-// footprint of one pixel in level-0 texels of the mapped uv (\${uSize}), scaled by footprintScale.
+// footprint of one pixel in level-0 texels of the mapped uv (uSize), scaled by footprintScale.
+const mapUvFunction = /* glsl */ `
 void mapUv(vec2 uv, vec2 dudx, vec2 dudy, float footprintScale, out vec2 uvm, out vec2 sx, out vec2 sy) {
   mat2 uvRotation = mat2(uUvRotation.x, uUvRotation.y, -uUvRotation.y, uUvRotation.x);
   uvm = uvRotation * (uv * uUvScale);
   sx = uvRotation * (dudx * uUvScale) * vec2(uSize) * footprintScale;
   sy = uvRotation * (dudy * uUvScale) * vec2(uSize) * footprintScale;
 }
+`;
 
-#ifdef BSVTF
+// Shared by the BSVTF surface and the feedback shaders: the tile level a footprint needs.
+const tileLevelFunction = /* glsl */ `
 // Equation 1: the level whose texels are as large as the pixel's footprint (level 0 with
 // mip-mapping off), as the feedback pass requests it and the surface shows it.
 int tileLevel(vec2 sx, vec2 sy) {
@@ -73,20 +83,19 @@ int tileLevel(vec2 sx, vec2 sy) {
   float rho = max(length(sx), length(sy));
   return rho > 1.0 ? min(int(floor(log2(rho))), uLevels - 1) : 0;
 }
-#endif
 `;
 
-export const fragmentShader = /* glsl */ `
-precision highp float;
-precision highp int;
-precision highp sampler2D;
+/**
+ * The codec part of the factorization codecs (src/btf/codecs/factor/material.cpp): bilinear in
+ * space with wrapping and texel centres at (i + 0.5) / W, barycentric over ≤ 3 views × ≤ 3 lights
+ * found through the AngularInterpolator grid of docs/interpolation.md, interpolation on the plane
+ * values, then the inverse colour transform. View groups, texel clusters and levels as in
+ * factor.ts "texture layouts"; with BSVTF defined, the eigen-textures come from the page's tile
+ * cache instead (docs/bsvtf.md).
+ */
+export const factorPart = /* glsl */ `
 precision highp sampler2DArray;
 precision highp isampler2D;
-
-#define MAX_LIGHTS ${MAX_LIGHTS}
-#define TABLE_WIDTH 1024
-#define PI 3.14159265358979
-#define MAX_TILE_LEVELS ${MAX_TILE_LEVELS}
 
 struct Interp {
   int R;
@@ -99,27 +108,26 @@ struct Interp {
   int invBase;
 };
 
-uniform vec3 cameraPosition;
-
 uniform highp sampler2DArray uA;     // angular factors, 4 components per texel
 uniform highp sampler2DArray uB;     // eigen-texture atlases (level 0 + mip chain)
-uniform highp sampler2DArray uMean;  // row means
+uniform highp sampler2DArray uMean;  // row means, a layer per (plane, cluster)
 uniform highp sampler2D uTabF;       // inverse matrices of both direction sets
 uniform highp isampler2D uTabI;      // triangles, cell offsets, cell triangles
+uniform highp isampler2D uBlocks;    // per (plane, group, cluster): aBase, layers loaded, bBase, means layer
+uniform highp isampler2D uViewGroup; // view group of each view
+uniform highp isampler2D uTexelCluster; // texel cluster of each texel (1 × 1 with one cluster)
 uniform Interp uViews;
 uniform Interp uLights;
 
 uniform int uPlanes;                 // 1 (rgb) or 3
 uniform int uChannels;               // 3 (rgb) or 1
 uniform int uNL;                     // lights of the sampling (column uNL = environment)
-uniform ivec3 uLayerBase;            // first layer of each plane
-uniform ivec3 uLayerCount;           // layers holding loaded components, per plane
-uniform int uColour;                 // 0 rgb, 1 decorrelated, 2 per-channel, 3 model11
+uniform int uGroups;                 // view groups
+uniform int uClusters;               // texel clusters
+uniform int uColour;                 // 0 rgb, 1 decorrelated, 2 per-channel, 3 model11, 4 lab
 uniform int uLog;
 uniform float uLogEps;
-uniform ivec2 uSize;                 // material width, height
 uniform int uMipLevels;
-uniform int uMip;                    // 1: mip-mapped minification, 0: level 0 only (the C++ lookup)
 #ifdef BSVTF
 uniform highp sampler2DArray uAtlas; // the tile cache, one tile per layer
 uniform highp isampler2D uIndir;     // per tile index: its layer, or −1
@@ -129,32 +137,9 @@ uniform int uLevels;
 uniform int uTilesPerGroup;
 uniform int uLevelBase[MAX_TILE_LEVELS];
 uniform int uTilesX[MAX_TILE_LEVELS];
+${tileLevelFunction}
 #endif
 
-uniform vec2 uUvScale;
-uniform vec2 uUvRotation;            // cos, sin of the uv rotation
-uniform int uUvTurnsTangent;         // rotation != 0 or scale_u != scale_v (scene.cpp)
-
-uniform int uLightCount;
-uniform int uLightType[MAX_LIGHTS];  // 0 directional, 1 point
-uniform vec3 uLightVec[MAX_LIGHTS];  // direction towards the light, or its position
-uniform vec3 uLightPower[MAX_LIGHTS];// irradiance E, or intensity I
-uniform vec3 uEnvRadiance;           // uniform environment radiance (0: off)
-uniform float uEnvScale;
-
-uniform float uExposure;
-uniform int uDebug;                  // 0 shading; 1 uv, 2 normal, 3 tangent, 4 view dir, 5 light dir
-
-in vec3 vPosition;
-in vec3 vNormal;
-in vec3 vTangent;
-in vec2 vUv;
-
-out vec4 fragColor;
-
-ivec2 tableTexel(int i) { return ivec2(i % TABLE_WIDTH, i / TABLE_WIDTH); }
-${wrapLerpFunction}
-${uvFunctions}
 int tableInt(int base, int k) { return texelFetch(uTabI, tableTexel(base + (k >> 2)), 0)[k & 3]; }
 
 // atan on [-1, 1] (Abramowitz & Stegun 4.4.49): the polynomial the C++ grid uses to find a cell.
@@ -259,6 +244,13 @@ vec4 sampleB(Footprint f, int layer) {
          f.w.z * texelFetch(uB, ivec3(f.p01, layer), 0) + f.w.w * texelFetch(uB, ivec3(f.p11, layer), 0);
 }
 
+// The bilinear footprint restricted to the texels of one cluster (mask: 1 for its texels).
+vec4 sampleB(Footprint f, int layer, vec4 mask) {
+  vec4 w = f.w * mask;
+  return w.x * texelFetch(uB, ivec3(f.p00, layer), 0) + w.y * texelFetch(uB, ivec3(f.p10, layer), 0) +
+         w.z * texelFetch(uB, ivec3(f.p01, layer), 0) + w.w * texelFetch(uB, ivec3(f.p11, layer), 0);
+}
+
 #ifdef BSVTF
 // BSVTF mode (docs/bsvtf.md): the eigen-textures are tiles in a cache shared by every material,
 // one tile per layer of uAtlas; uIndir maps this material's tile index (TileLayout::index) to
@@ -347,6 +339,17 @@ vec3 inverseColour(vec3 p) {
     float y = exp(p.x) - eps, u = p.y * (y + eps), w = p.z * (y + eps);
     return vec3(y + 1.13983 * w, y - 0.39465 * u - 0.58060 * w, y + 2.03211 * u);
   }
+  if (uColour == 4) {
+    // CIELab (D65, Y = 1) → XYZ → linear RGB: lab_to_xyz and xyz_to_rgb of core/color.cpp.
+    const float epsilon = 216.0 / 24389.0, kappa = 24389.0 / 27.0;
+    float fy = (p.x + 16.0) / 116.0, fx = fy + p.y / 500.0, fz = fy - p.z / 200.0;
+    float x = fx * fx * fx > epsilon ? fx * fx * fx : (116.0 * fx - 16.0) / kappa;
+    float y = p.x > kappa * epsilon ? fy * fy * fy : p.x / kappa;
+    float z = fz * fz * fz > epsilon ? fz * fz * fz : (116.0 * fz - 16.0) / kappa;
+    vec3 xyz = vec3(x * 0.95047, y, z * 1.08883);
+    return vec3(dot(vec3(3.2404542, -1.5371385, -0.4985314), xyz), dot(vec3(-0.9692660, 1.8760108, 0.0415560), xyz),
+                dot(vec3(0.0556434, -0.2040259, 1.0572252), xyz));
+  }
   vec3 v = p;
   if (uColour == 1) {
     const float a = 0.57735026919, b = 0.70710678118, c = 0.40824829046;
@@ -356,6 +359,150 @@ vec3 inverseColour(vec3 p) {
   return v;
 }
 
+// One row's value for column col (light · C + channel) of a view: the row mean times the
+// cluster's spatial weight (layer < 0; b = that weight), or a(row, 4 components of the layer) · b.
+float rowValue(int col, int view, int meanLayer, int layer, vec4 b) {
+  if (layer < 0) return texelFetch(uMean, ivec3(col, view, meanLayer), 0).r * b.x;
+  return dot(texelFetch(uA, ivec3(col, view, layer), 0), b);
+}
+
+void codecEvaluate(vec2 uvm, vec2 sx, vec2 sy, vec3 wo, vec3 wi[MAX_LIGHTS], bool lit[MAX_LIGHTS], int lightCount, bool env,
+                   out vec3 direct[MAX_LIGHTS], out vec3 ambient) {
+  Weights lw[MAX_LIGHTS];
+  for (int i = 0; i < MAX_LIGHTS; ++i) {
+    direct[i] = vec3(0.0);
+    lw[i].index = ivec3(0);
+    lw[i].weight = vec3(0.0);
+    if (i < lightCount && lit[i]) lw[i] = lookupWeights(uLights, wi[i]);
+  }
+  ambient = vec3(0.0);
+  Weights vw = lookupWeights(uViews, wo);
+
+  // Mip level from the screen footprint in level-0 texels; at or below 0 (magnification) the
+  // lookup is exactly the C++ bilinear one. Clustered models have no mip chain.
+#ifdef BSVTF
+  // The level the feedback pass asks for (equation 1), without blending between levels.
+  int level = tileLevel(sx, sy);
+#else
+  float lod = 0.0;
+  if (uMip == 1 && uMipLevels > 1) {
+    float rho = max(length(sx), length(sy));
+    lod = rho > 1.0 ? min(log2(rho), float(uMipLevels - 1)) : 0.0;
+  }
+  int level0 = int(floor(lod));
+  float levelBlend = lod - float(level0);
+  int level1 = min(level0 + 1, uMipLevels - 1);
+  Footprint f0 = footprint(uvm, level0);
+  Footprint f1 = footprint(uvm, level1);
+#endif
+
+  // The clusters of the lookup's four texels (material.cpp: each texel is evaluated with its own
+  // cluster's blocks) and the groups of its views.
+  ivec4 texelCluster = ivec4(0);
+#ifndef BSVTF
+  if (uClusters > 1)
+    texelCluster = ivec4(texelFetch(uTexelCluster, f0.p00, 0).r, texelFetch(uTexelCluster, f0.p10, 0).r,
+                         texelFetch(uTexelCluster, f0.p01, 0).r, texelFetch(uTexelCluster, f0.p11, 0).r);
+#endif
+  ivec3 viewGroup = ivec3(-1);
+  for (int vi = 0; vi < 3; ++vi)
+    if (vw.weight[vi] > 0.0) viewGroup[vi] = uGroups == 1 ? 0 : texelFetch(uViewGroup, tableTexel(vw.index[vi]), 0).r;
+
+  int C = uChannels;
+  for (int p = 0; p < uPlanes; ++p)
+    for (int gi = 0; gi < 3; ++gi) {
+      int g = viewGroup[gi];
+      if (g < 0 || (gi > 0 && g == viewGroup[0]) || (gi > 1 && g == viewGroup[1])) continue;
+      for (int ci = 0; ci < 4; ++ci) {
+        int c = texelCluster[ci];
+        if ((ci > 0 && c == texelCluster[0]) || (ci > 1 && c == texelCluster[1]) || (ci > 2 && c == texelCluster[2])) continue;
+        vec4 mask = vec4(equal(texelCluster, ivec4(c)));
+        ivec4 block = texelFetch(uBlocks, tableTexel((p * uGroups + g) * uClusters + c), 0);
+        // j = -1: the row means (texel-independent: weighted by the cluster's share of the
+        // bilinear weights, 1 with one cluster); then each layer of four components, a(row) · b(texel).
+        for (int j = -1; j < block.y; ++j) {
+          vec4 b;
+          if (j < 0) {
+#ifdef BSVTF
+            b = vec4(1.0);
+#else
+            b = vec4(dot(f0.w, mask));
+#endif
+          } else {
+#ifdef BSVTF
+            b = sampleCached(uvm, level, block.z + j);
+#else
+            b = sampleB(f0, block.z + j, mask);
+            if (levelBlend > 0.0) b = mix(b, sampleB(f1, block.z + j, mask), levelBlend);
+#endif
+          }
+          int layer = j < 0 ? -1 : block.x + j;
+          for (int vi = 0; vi < 3; ++vi) {
+            if (viewGroup[vi] != g) continue;
+            float wv = vw.weight[vi];
+            int view = vw.index[vi];
+            for (int i = 0; i < lightCount; ++i) {
+              if (!lit[i]) continue;
+              for (int li = 0; li < 3; ++li) {
+                float w = wv * lw[i].weight[li];
+                if (w <= 0.0) continue;
+                int light = lw[i].index[li];
+                for (int ch = 0; ch < C; ++ch) direct[i][p + ch] += w * rowValue(light * C + ch, view, block.w, layer, b);
+              }
+            }
+            if (env)
+              for (int ch = 0; ch < C; ++ch) ambient[p + ch] += wv * rowValue(uNL * C + ch, view, block.w, layer, b);
+          }
+        }
+      }
+    }
+  for (int i = 0; i < MAX_LIGHTS; ++i) direct[i] = inverseColour(direct[i]);
+  ambient = inverseColour(ambient);
+}
+`;
+
+/** The surface's fragment shader with a codec part (see the top of this file). */
+export function fragmentShader(codecPart: string): string {
+  return /* glsl */ `
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+
+#define MAX_LIGHTS ${MAX_LIGHTS}
+#define TABLE_WIDTH 1024
+#define PI 3.14159265358979
+#define MAX_TILE_LEVELS ${MAX_TILE_LEVELS}
+
+uniform vec3 cameraPosition;
+
+uniform ivec2 uSize;                 // material width, height
+uniform int uMip;                    // 1: mip-mapped minification, 0: level 0 only (the C++ lookup)
+
+uniform vec2 uUvScale;
+uniform vec2 uUvRotation;            // cos, sin of the uv rotation
+uniform int uUvTurnsTangent;         // rotation != 0 or scale_u != scale_v (scene.cpp)
+
+uniform int uLightCount;
+uniform int uLightType[MAX_LIGHTS];  // 0 directional, 1 point
+uniform vec3 uLightVec[MAX_LIGHTS];  // direction towards the light, or its position
+uniform vec3 uLightPower[MAX_LIGHTS];// irradiance E, or intensity I
+uniform vec3 uEnvRadiance;           // uniform environment radiance (0: off)
+uniform float uEnvScale;
+
+uniform float uExposure;
+uniform int uDebug;                  // 0 shading; 1 uv, 2 normal, 3 tangent, 4 view dir, 5 light dir
+
+in vec3 vPosition;
+in vec3 vNormal;
+in vec3 vTangent;
+in vec2 vUv;
+
+out vec4 fragColor;
+
+ivec2 tableTexel(int i) { return ivec2(i % TABLE_WIDTH, i / TABLE_WIDTH); }
+${wrapLerpFunction}
+${mapUvFunction}
+${codecPart}
 // quality::tone_map (exposure, Narkowicz's ACES fit, clamp), then the sRGB transfer.
 vec3 toneMap(vec3 linear) {
   vec3 x = max(linear * exp2(uExposure), 0.0);
@@ -369,13 +516,6 @@ vec3 anyTangent(vec3 n) {
   float a = -1.0 / (s + n.z);
   float b = n.x * n.y * a;
   return vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-}
-
-// One row's value for column col (light · C + channel) of a view: the row mean (layer < 0) or
-// a(row, 4 components of the layer) · b.
-float rowValue(int col, int view, int plane, int layer, vec4 b) {
-  if (layer < 0) return texelFetch(uMean, ivec3(col, view, plane), 0).r;
-  return dot(texelFetch(uA, ivec3(col, view, layer), 0), b);
 }
 
 void main() {
@@ -418,15 +558,13 @@ void main() {
   if (wo.z < 1e-4) wo = normalize(vec3(wo.xy, 1e-4));  // silhouettes (integrator.cpp)
 
   // Lights: direction, irradiance, and whether it reaches the surface.
-  Weights lw[MAX_LIGHTS];
+  vec3 wi[MAX_LIGHTS];
   vec3 irradiance[MAX_LIGHTS];
   bool lit[MAX_LIGHTS];
-  vec3 firstWi = vec3(0.0);
   for (int i = 0; i < MAX_LIGHTS; ++i) {
     lit[i] = false;
     irradiance[i] = vec3(0.0);
-    lw[i].index = ivec3(0);
-    lw[i].weight = vec3(0.0);
+    wi[i] = vec3(0.0, 0.0, 1.0);
     if (i >= uLightCount) continue;
     vec3 wiWorld;
     if (uLightType[i] == 1) {
@@ -438,11 +576,9 @@ void main() {
       wiWorld = normalize(uLightVec[i]);
       irradiance[i] = uLightPower[i];
     }
-    vec3 wi = toLocal * wiWorld;
-    if (i == 0) firstWi = wi;
-    if (dot(wiWorld, ng) <= 0.0 || wi.z <= 0.0) continue;
+    wi[i] = toLocal * wiWorld;
+    if (dot(wiWorld, ng) <= 0.0 || wi[i].z <= 0.0) continue;
     lit[i] = true;
-    lw[i] = lookupWeights(uLights, wi);
   }
 
   if (uDebug != 0) {
@@ -450,79 +586,26 @@ void main() {
            : uDebug == 2 ? n * 0.5 + 0.5
            : uDebug == 3 ? t * 0.5 + 0.5
            : uDebug == 4 ? wo * 0.5 + 0.5
-           : firstWi * 0.5 + 0.5;
+           : (uLightCount > 0 ? wi[0] : vec3(0.0)) * 0.5 + 0.5;
     fragColor = vec4(c, 1.0);
     return;
   }
 
-  Weights vw = lookupWeights(uViews, wo);
   bool env = uEnvRadiance.x > 0.0 || uEnvRadiance.y > 0.0 || uEnvRadiance.z > 0.0;
-
-  // Mip level from the screen footprint in level-0 texels; at or below 0 (magnification) the
-  // lookup is exactly the C++ bilinear one.
-#ifdef BSVTF
-  // The level the feedback pass asks for (equation 1), without blending between levels.
-  int level = tileLevel(sx, sy);
-#else
-  float lod = 0.0;
-  if (uMip == 1) {
-    float rho = max(length(sx), length(sy));
-    lod = rho > 1.0 ? min(log2(rho), float(uMipLevels - 1)) : 0.0;
-  }
-  int level0 = int(floor(lod));
-  float levelBlend = lod - float(level0);
-  int level1 = min(level0 + 1, uMipLevels - 1);
-  Footprint f0 = footprint(uvm, level0);
-  Footprint f1 = footprint(uvm, level1);
-#endif
-
   vec3 direct[MAX_LIGHTS];
-  for (int i = 0; i < MAX_LIGHTS; ++i) direct[i] = vec3(0.0);
-  vec3 ambient = vec3(0.0);
-  int C = uChannels;
-
-  for (int p = 0; p < uPlanes; ++p) {
-    // j = -1: the row means (texel-independent: the bilinear weights sum to 1); then each layer of
-    // four components, a(row) · b(texel).
-    for (int j = -1; j < uLayerCount[p]; ++j) {
-      int layer = j < 0 ? -1 : uLayerBase[p] + j;
-      vec4 b = vec4(1.0);
-      if (layer >= 0) {
-#ifdef BSVTF
-        b = sampleCached(uvm, level, layer);
-#else
-        b = sampleB(f0, layer);
-        if (levelBlend > 0.0) b = mix(b, sampleB(f1, layer), levelBlend);
-#endif
-      }
-      for (int vi = 0; vi < 3; ++vi) {
-        float wv = vw.weight[vi];
-        if (wv <= 0.0) continue;
-        int view = vw.index[vi];
-        for (int i = 0; i < uLightCount; ++i) {
-          if (!lit[i]) continue;
-          for (int li = 0; li < 3; ++li) {
-            float w = wv * lw[i].weight[li];
-            if (w <= 0.0) continue;
-            int light = lw[i].index[li];
-            for (int ch = 0; ch < C; ++ch) direct[i][p + ch] += w * rowValue(light * C + ch, view, p, layer, b);
-          }
-        }
-        if (env)
-          for (int ch = 0; ch < C; ++ch) ambient[p + ch] += wv * rowValue(uNL * C + ch, view, p, layer, b);
-      }
-    }
-  }
+  vec3 ambient;
+  codecEvaluate(uvm, sx, sy, wo, wi, lit, uLightCount, env, direct, ambient);
 
   // BtfSurface::eval clamps negative values (a truncated factorization rings); each delta light
   // adds f · E / π.
   vec3 radiance = vec3(0.0);
   for (int i = 0; i < uLightCount; ++i)
-    if (lit[i]) radiance += max(inverseColour(direct[i]), 0.0) * irradiance[i] / PI;
-  if (env) radiance += max(inverseColour(ambient), 0.0) * uEnvScale * uEnvRadiance;
+    if (lit[i]) radiance += max(direct[i], 0.0) * irradiance[i] / PI;
+  if (env) radiance += max(ambient, 0.0) * uEnvScale * uEnvRadiance;
   fragColor = vec4(toneMap(radiance), 1.0);
 }
 `;
+}
 
 
 /**
@@ -550,7 +633,8 @@ in vec2 vUv;
 
 out vec4 fragColor;
 ${wrapLerpFunction}
-${uvFunctions}
+${mapUvFunction}
+${tileLevelFunction}
 void main() {
   vec2 dudx = dFdx(vUv), dudy = dFdy(vUv);
   if (uMaterialIndex < 0) {

@@ -242,7 +242,7 @@ class Viewer {
     return new THREE.RawShaderMaterial({
       glslVersion: THREE.GLSL3,
       vertexShader,
-      fragmentShader,
+      fragmentShader: fragmentShader(mat.codecPart),
       uniforms: { ...mat.uniforms, ...this.global, ...objectUniforms },
       defines: mat.entry.codec === "bsvtf" ? { BSVTF: 1 } : {},
       side: THREE.DoubleSide,
@@ -446,8 +446,8 @@ function updateHud(v: Viewer): void {
     const s = m.state;
     const status = s.error ? "error" : s.complete ? "complete" : s.done ? "ended early" : s.ready ? "refining" : "loading";
     lines.push(
-      `${s.id}: ${formatBytes(s.bytes)} / ${s.total ? formatBytes(s.total) : "?"} · ` +
-        `${s.components}/${s.totalComponents || "?"} components · ${s.transport || "…"} · ${status}`,
+      `${s.id} (${s.codec ?? "?"}): ${formatBytes(s.bytes)} / ${s.total ? formatBytes(s.total) : "?"} · ` +
+        `${s.components}/${s.totalComponents || "?"} ${s.unit} · ${s.transport || "…"} · ${status}`,
     );
   }
   const t = v.tiles.state;

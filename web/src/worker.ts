@@ -3,18 +3,21 @@
 // page only copies finished layers into textures and its frame loop never waits on decoding.
 
 import {
-  FmfModel,
+  FactorModel,
   UnsupportedMaterial,
-  blockRows,
+  blockIndex,
   columnBytes,
   columnHalfBits,
-  decodeMeans,
+  evalBlockOf,
+  groupRows,
   makeLayout,
   mipChain,
-  readFmfHeader,
-  type FmfInfo,
+  readFactorHeader,
+  storedRows,
+  upsampleLevel,
+  type FactorInfo,
   type Layout,
-} from "./fmf";
+} from "./factor";
 import { decodeTile, layoutOf, predictChild, readBsvtfHeader, readTileIndex, type BsvtfInfo } from "./bsvtf";
 import type { TileLayout } from "./cache";
 import { floatToHalf, halfToFloat } from "./half";
@@ -29,14 +32,16 @@ const ctx = self as unknown as {
 
 let name = "material";
 let stream: PackageStream | null = null;
-let info: FmfInfo | null = null;
+let info: FactorInfo | null = null;
 let layout: Layout | null = null;
-let model: FmfModel | null = null;
+let model: FactorModel | null = null;
 let tables: { views: InterpTables; lights: InterpTables } | null = null;
 /** Environment weight per light (normalized to sum 1 for log models). */
 let envWeights: Float64Array | null = null;
 let aLayers: Float32Array[] = [];
 let bLayers: (Float32Array | Uint16Array)[] = [];
+/** Per eval block: aBase, layers holding loaded components, bBase, means layer (Layout "Blocks"). */
+let blockTable: Int32Array = new Int32Array(0);
 let failed = false;
 /** BSVTF packages: the tile fields and layout (null for fmf packages). */
 let bsvtf: BsvtfInfo | null = null;
@@ -74,14 +79,16 @@ function onHeader(h: PackageHeader): void {
     }
     const source = h.json.source;
     if (!source || typeof source !== "object") throw new Error(`${name}: package (bsvtf): header field 'source' is missing`);
-    info = readFmfHeader(name, source as Record<string, unknown>);
+    info = readFactorHeader(name, source as Record<string, unknown>);
   } else {
-    info = readFmfHeader(name, h.json);
+    info = readFactorHeader(name, h.json);
   }
   layout = makeLayout(info);
-  model = new FmfModel(info);
+  model = new FactorModel(info);
   const L = layout;
   if (bsvtf) {
+    if (info.groups.length > 1 || info.clusters > 1 || info.levels > 1 || info.angularLevels.length > 0)
+      throw new UnsupportedMaterial(`${name}: a BSVTF package of a ${info.codec} model with view groups, clusters or levels is not supported by the viewer`);
     // The shader reads group g's four components from a-layer g.
     bsvtf.groups.forEach((g, gi) => {
       if (L.layerBase[g.plane] + (g.first >> 2) !== gi || g.first % 4 !== 0)
@@ -90,25 +97,34 @@ function onHeader(h: PackageHeader): void {
   }
   const aSize = L.aWidth * L.aHeight * 4;
   const bSize = bsvtf ? 0 : L.atlasWidth * L.atlasHeight * 4;
-  aLayers = Array.from({ length: L.layers }, () => new Float32Array(aSize));
-  bLayers = Array.from({ length: L.layers }, () => (L.half ? new Uint16Array(bSize) : new Float32Array(bSize)));
+  aLayers = Array.from({ length: L.aLayers }, () => new Float32Array(aSize));
+  bLayers = Array.from({ length: bsvtf ? 0 : L.bLayers }, () => (L.half ? new Uint16Array(bSize) : new Float32Array(bSize)));
+  blockTable = new Int32Array(4 * L.evalBlocks);
+  for (let e = 0; e < L.evalBlocks; ++e) {
+    const pg = Math.floor(e / info.clusters);
+    blockTable.set([L.aBase[e], bsvtf ? L.aCapacity[e] : 0, bsvtf ? L.aBase[e] : L.bBase[pg], Math.floor(pg / info.groups.length) * info.clusters + (e % info.clusters)], 4 * e);
+  }
   post({
     type: "header",
     info,
     layout: L,
+    blocks: blockTable.slice(),
     totalBytes: h.totalBytes,
     sections: h.sections.map((s) => ({ name: s.name, offset: h.headerBytes + s.offset, size: s.size })),
     bsvtf,
   });
 }
 
-// Writes component k of `plane`'s a column into its a-layer lane, with the environment column.
-function packA(plane: number, k: number, a: Float32Array): number {
+// Writes component k of block `block` (its a column at every row of its group) into its a-layer
+// lane, with the environment column; returns the layer and the lane.
+function packA(block: number, k: number, a: Float32Array): { layer: number; lane: number } {
   const i = info!, L = layout!;
-  const layer = L.layerBase[plane] + (k >> 2), lane = k & 3;
+  const b = i.blocks[block];
+  const e = evalBlockOf(i, b), index = L.laneOffset[block] + k;
+  const layer = L.aBase[e] + (index >> 2), lane = index & 3;
   const C = i.channels, nL = i.nL, W = L.aWidth;
   const aLayer = aLayers[layer];
-  for (let v = 0; v < i.nV; ++v) {
+  for (const v of i.groups[b.group]) {
     const slot = i.slotOfView[v];
     for (let ch = 0; ch < C; ++ch) {
       let env = 0;
@@ -120,7 +136,8 @@ function packA(plane: number, k: number, a: Float32Array): number {
       aLayer[(v * W + nL * C + ch) * 4 + lane] = env;
     }
   }
-  return layer;
+  blockTable[4 * e + 1] = Math.max(blockTable[4 * e + 1], (index >> 2) + 1);
+  return { layer, lane };
 }
 
 let packetsLoaded = 0;
@@ -134,7 +151,7 @@ function onPacket(packetName: string, stored: Uint8Array): void {
   if (!envWeights) throw new Error(`section '${packetName}' arrives before section 'tables' (the viewer needs the tables first)`);
   const data = stream!.decodeSection(entry, stored, header!.headerBytes + entry.offset);
   const g = b.groups[Number(m[1])];
-  const rows = blockRows(i), size = b.uFormat === "f16" ? 2 : 4;
+  const rows = groupRows(i, 0), size = b.uFormat === "f16" ? 2 : 4;
   if (data.length !== rows * g.count * size) throw new Error(`section '${packetName}' holds ${data.length} bytes, expected ${rows * g.count * size}`);
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   let layer = 0;
@@ -144,11 +161,12 @@ function onPacket(packetName: string, stored: Uint8Array): void {
       const at = (c * rows + r) * size;
       a[r] = size === 2 ? halfToFloat(view.getUint16(at, true)) : view.getFloat32(at, true);
     }
-    layer = packA(g.plane, g.first + c, a);
+    layer = packA(blockIndex(i, g.plane, 0, 0), g.first + c, a).layer;
   }
   packetsLoaded += g.count;
   const aCopy = aLayers[layer].slice();
-  post({ type: "component", name: packetName, plane: g.plane, k: g.first, layer, aLayer: aCopy, bLayer: null, loaded: packetsLoaded }, [aCopy.buffer]);
+  const blocks = blockTable.slice();
+  post({ type: "component", name: packetName, aIndex: layer, aLayer: aCopy, bIndex: -1, bLayer: null, blocks, loaded: packetsLoaded }, [aCopy.buffer, blocks.buffer]);
 }
 
 async function onTile(index: number, payload: Uint8Array, parent: Uint16Array | null): Promise<void> {
@@ -221,23 +239,37 @@ function onSection(s: DecodedSection): void {
     post(msg, [msg.tabF.buffer, msg.tabI.buffer]);
     return;
   }
+  if (sectionName === "angular") {
+    m.setAngular(s.data);
+    return;
+  }
+  if (sectionName === "clusters") {
+    m.setClusters(s.data);
+    const clusters = m.cluster!.slice();
+    post({ type: "clusters", data: clusters }, [clusters.buffer]);
+    return;
+  }
   if (sectionName === "means") {
     if (!envWeights) throw new Error("section 'means' arrives before section 'tables' (the viewer needs the tables first)");
-    m.means = decodeMeans(i, s.data);
+    m.setMeans(s.data);
+    // Each eval block's means layer holds the sum of its blocks' means (every level's bilinear
+    // weights sum to one, so their means add).
     const C = i.channels, nL = i.nL, W = L.aWidth;
-    const data = new Float32Array(W * L.aHeight * i.planes);
-    m.means.forEach((mean, p) => {
+    const data = new Float32Array(W * L.aHeight * L.meanLayers);
+    i.blocks.forEach((b, bi) => {
+      const mean = m.means[bi];
       if (!mean) return;
-      for (let v = 0; v < i.nV; ++v) {
+      const layer = b.plane * i.clusters + b.cluster;
+      for (const v of i.groups[b.group]) {
         const slot = i.slotOfView[v];
         for (let ch = 0; ch < C; ++ch) {
           let env = 0;
           for (let l = 0; l < nL; ++l) {
             const x = mean[(slot * nL + l) * C + ch];
-            data[(p * L.aHeight + v) * W + l * C + ch] = x;
+            data[(layer * L.aHeight + v) * W + l * C + ch] += x;
             env += envWeights![l] * x;
           }
-          data[(p * L.aHeight + v) * W + nL * C + ch] = env;
+          data[(layer * L.aHeight + v) * W + nL * C + ch] += env;
         }
       }
     });
@@ -254,28 +286,41 @@ function onSection(s: DecodedSection): void {
   if (!/^b\d+\.k\d+$/.test(sectionName)) return; // sections of no concern to the viewer
   if (!envWeights) throw new Error(`section '${sectionName}' arrives before section 'tables' (the viewer needs the tables first)`);
   const { block, k } = m.addComponent(sectionName, s.data);
-  const layer = packA(block, k, m.a[block][k]);
-  const lane = k & 3;
-  const aLayer = aLayers[layer];
-  const b = m.b[block][k];
-  const bLayer = bLayers[layer];
-  const mips = mipChain(L, b);
-  // f16 packages: level 0 keeps the stored half bits (exact); the averaged levels are rounded.
-  const level0Bits = L.half ? columnHalfBits(s.data, columnBytes("f16", blockRows(i)), i.width * i.height) : null;
-  mips.forEach((level, mi) => {
-    const r = L.mips[mi];
-    for (let y = 0; y < r.h; ++y)
-      for (let x = 0; x < r.w; ++x) {
-        const at = ((r.y + y) * L.atlasWidth + r.x + x) * 4 + lane;
-        const src = y * r.w + x;
-        if (level0Bits && mi === 0) bLayer[at] = level0Bits[src];
-        else bLayer[at] = L.half ? floatToHalf(level[src]) : level[src];
-      }
-  });
-  const aCopy = aLayer.slice(), bCopy = bLayer.slice();
-  post({ type: "component", name: sectionName, plane: block, k, layer, aLayer: aCopy, bLayer: bCopy, loaded: m.loadedComponents }, [
+  const b = i.blocks[block];
+  const { layer, lane } = packA(block, k, m.a[block][k]);
+  const bIndex = L.bBase[b.plane * i.groups.length + b.group] + (layer - L.aBase[evalBlockOf(i, b)]);
+  const bLayer = bLayers[bIndex];
+  const stored = m.b[block][k];
+  if (i.clusters > 1) {
+    // Each texel of the block's cluster gets its own value; the other texels keep their clusters'.
+    const cluster = m.cluster!, local = m.local!;
+    for (let t = 0; t < cluster.length; ++t) {
+      if (cluster[t] !== b.cluster) continue;
+      const at = t * 4 + lane; // no mip chain: the atlas is W × H
+      bLayer[at] = L.half ? floatToHalf(stored[local[t]]) : stored[local[t]];
+    }
+  } else {
+    const full = b.level > 0 ? upsampleLevel(i, stored, b.level) : stored;
+    const mips = mipChain(L, full);
+    // f16 packages: level 0 of a full-resolution block keeps the stored half bits (exact); the
+    // averaged and up-sampled levels are rounded.
+    const level0Bits = L.half && b.level === 0 ? columnHalfBits(s.data, columnBytes("f16", storedRows(i, b)), i.width * i.height) : null;
+    mips.forEach((level, mi) => {
+      const r = L.mips[mi];
+      for (let y = 0; y < r.h; ++y)
+        for (let x = 0; x < r.w; ++x) {
+          const at = ((r.y + y) * L.atlasWidth + r.x + x) * 4 + lane;
+          const src = y * r.w + x;
+          if (level0Bits && mi === 0) bLayer[at] = level0Bits[src];
+          else bLayer[at] = L.half ? floatToHalf(level[src]) : level[src];
+        }
+    });
+  }
+  const aCopy = aLayers[layer].slice(), bCopy = bLayer.slice(), blocks = blockTable.slice();
+  post({ type: "component", name: sectionName, aIndex: layer, aLayer: aCopy, bIndex, bLayer: bCopy, blocks, loaded: m.loadedComponents }, [
     aCopy.buffer,
     bCopy.buffer,
+    blocks.buffer,
   ]);
 }
 

@@ -6,20 +6,39 @@
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { mkdirSync, writeFileSync } from "node:fs";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
 import { PATIENCE_MS, freePort, launchBrowser, meanDiff, openPage as open, pixels, render, state } from "./browser.mjs";
 import { ARTIFACTS, listEntry, makeFixtures, makeSite } from "./fixtures.mjs";
 import { startServer } from "./server.mjs";
 
 const SHOTS = path.join(ARTIFACTS, "e2e");
-const IDS = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_broken"];
+const IDS = [
+  "woven_fabric",
+  "woven_declog",
+  "woven_perchannel",
+  "woven_model11",
+  "woven_pca",
+  "woven_pca_declog",
+  "woven_lpca",
+  "woven_lpca_dec",
+  "woven_perceptual",
+  "woven_perceptual_u8",
+  "woven_broken",
+  "woven_lpca_broken",
+  "woven_perceptual_broken",
+  "woven_pca_broken",
+];
 
 let fx, site, server, browser;
 
 before(async () => {
   fx = makeFixtures();
   site = makeSite("site", fx.packages, IDS);
+  // A list entry of a codec the viewer does not know: refused from the list alone.
+  const list = JSON.parse(readFileSync(path.join(site, "api", "materials"), "utf8"));
+  list.materials.push({ ...list.materials[0], id: "woven_other", name: "woven_other", codec: "neural" });
+  writeFileSync(path.join(site, "api", "materials"), JSON.stringify(list, null, 1));
   // A second list naming the WebSocket streams (what btf serve answers).
   writeFileSync(
     path.join(site, "api", "materials-ws"),
@@ -129,13 +148,13 @@ test("the animated page keeps drawing while components arrive, and its HUD says 
     const f0 = (await state(page)).frames;
     await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 3, f0, { timeout: PATIENCE_MS });
     assert.equal((await state(page)).components, 1);
-    assert.match(await page.locator("#hud").innerText(), /woven_fabric: [\d.]+ KiB \/ 322\.5 KiB · 1\/8 components · http · refining/);
+    assert.match(await page.locator("#hud").innerText(), /woven_fabric \(fmf\): [\d.]+ KiB \/ 322\.5 KiB · 1\/8 components · http · refining/);
     server.releaseAll("woven_fabric");
     await page.waitForFunction(() => window.btfViewer.state.complete && window.btfViewer.state.components === 8, null, { timeout: PATIENCE_MS });
     const f1 = (await state(page)).frames;
     await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 2, f1, { timeout: PATIENCE_MS });
     const hud = await page.locator("#hud").innerText();
-    assert.match(hud, /woven_fabric: 322\.5 KiB \/ 322\.5 KiB · 8\/8 components · http · complete/);
+    assert.match(hud, /woven_fabric \(fmf\): 322\.5 KiB \/ 322\.5 KiB · 8\/8 components · http · complete/);
     assert.match(hud, /frame [\d.]+ ms \(\d+ fps\) · submit [\d.]+ ms/);
     await page.screenshot({ path: path.join(SHOTS, "animated-page.png") });
     assert.deepEqual(problems, []);
@@ -182,8 +201,14 @@ test("the WebSocket stream renders the same frame, and a cut socket resumes over
   }
 });
 
-test("colour variants (UBO2014 model 11 too), log, quantizations, the environment and several objects match the CPU reference", async () => {
+test("every factor codec, colour variants (UBO2014 model 11 too), log, quantizations, the environment and several objects match the CPU reference", async () => {
   const cases = [
+    { name: "pca-views", query: "material=woven_pca&light=1,2,1.5" },
+    { name: "pca-views-declog-env", query: "material=woven_pca_declog&env=0.6" },
+    { name: "lpca", query: "material=woven_lpca&light=-1,2,1.5" },
+    { name: "lpca-decorrelated-env", query: "material=woven_lpca_dec&env=0.5&light=1,1,0.5" },
+    { name: "perceptual", query: "material=woven_perceptual&light=1,2,1.5" },
+    { name: "perceptual-u8-env", query: "material=woven_perceptual_u8&env=0.6" },
     { name: "declog-env", query: "material=woven_declog&env=0.6&exposure=0.5" },
     { name: "two-objects", query: "objects=sphere:woven_perchannel@-1.3,0,0;torus:woven_fabric@1.3,0,0&camera=0,2.5,5.5&light=-1,2,1.5" },
     { name: "ubo2014-model11", query: "material=woven_model11&light=1,2,1.5" },
@@ -250,7 +275,29 @@ test("the page says clearly what went wrong", async () => {
   assert.equal(s.components, 2);
   assert.ok(s.objects[0].visible);
   await broken.page.close();
-  assert.match(await messageOf("material=woven_pca"), /codec 'pca-views' is not supported by the viewer/);
+  assert.match(await messageOf("material=woven_other"), /woven_other: codec 'neural' is not supported by the viewer/);
+  // A damaged section of each codec's own model: one message naming the material and the section,
+  // and the page keeps drawing the other object.
+  for (const [id, section] of [
+    ["woven_lpca_broken", "clusters"],
+    ["woven_perceptual_broken", "angular"],
+    ["woven_pca_broken", "b1.k0"],
+  ]) {
+    const { page, problems } = await openPage(`objects=sphere:${id}@-1.3,0,0;sphere:woven_fabric@1.3,0,0&camera=0,1,5&size=96x64&deterministic=1&hud=0`);
+    try {
+      await page.waitForFunction(() => !document.getElementById("message").hidden, null, { timeout: PATIENCE_MS });
+      await page.waitForFunction(() => window.btfViewer.state.materials.find((m) => m.id === "woven_fabric").complete, null, { timeout: PATIENCE_MS });
+      const message = await page.locator("#message").innerText();
+      assert.match(message, new RegExp(`Material failed to load: ${id}: checksum mismatch in section '${section.replace(".", "\\.")}'`));
+      assert.equal(message.split("\n").filter((l) => l.includes(id)).length, 1, message);
+      await render(page);
+      const s = await state(page);
+      assert.ok(s.objects[1].visible, JSON.stringify(s.objects));
+      assert.deepEqual(problems, []);
+    } finally {
+      await page.close();
+    }
+  }
   assert.match(await messageOf("material=nothing"), /material 'nothing' is not in the server's list/);
   assert.match(await messageOf("object=cube"), /unknown shape 'cube'/);
   // A browser without WebGL2.

@@ -54,8 +54,18 @@ export const PACKAGES = {
   woven_declog: ["--codec", "fmf", "--components", "6", "-p", "colour=decorrelated", "-p", "log=true", "-p", "mean=true", "--quantize", "u8"],
   // per-channel colour, f32 factors, stored raw (no zstd)
   woven_perchannel: ["--codec", "fmf", "--components", "6", "-p", "colour=per-channel", "--quantize", "f32", "--zstd", "0"],
-  // a codec the viewer does not render
-  woven_pca: ["--codec", "pca-views", "--components", "2"],
+  // pca-views: groups of 9 neighbouring views, rgb, f16
+  woven_pca: ["--codec", "pca-views", "--components", "3", "-p", "views-per-group=9"],
+  // pca-views: decorrelated colour, log, u8
+  woven_pca_declog: ["--codec", "pca-views", "--components", "2", "-p", "views-per-group=20", "-p", "colour=decorrelated", "-p", "log=true", "--quantize", "u8"],
+  // lpca: 4 texel clusters, rgb, f16
+  woven_lpca: ["--codec", "lpca", "--components", "3", "-p", "clusters=4"],
+  // lpca: decorrelated colour, f32
+  woven_lpca_dec: ["--codec", "lpca", "--components", "2", "-p", "clusters=3", "-p", "colour=decorrelated", "--quantize", "f32"],
+  // perceptual: CIELab planes with spatial and angular levels (high-frequency omission), f16
+  woven_perceptual: ["--codec", "perceptual", "--components", "10", "-p", "quality=0.6"],
+  // perceptual: one level, row means, u8
+  woven_perceptual_u8: ["--codec", "perceptual", "--components", "6", "-p", "mean=true", "--quantize", "u8"],
 };
 
 export function makeFixtures() {
@@ -97,17 +107,24 @@ export function makeFixtures() {
   out.woven_model11 = model11;
   out.bsvtf = path.join(FIXTURES, "woven_fabric.bsvtf");
   out.bsvtfLossless = path.join(FIXTURES, "woven_lossless.bsvtf");
-  // A package damaged in its third component section: the header and the first components read
-  // fine, then the checksum of that section fails.
-  const broken = path.join(FIXTURES, "woven_broken.btfpkg");
-  const bytes = readFileSync(out.woven_fabric);
-  const h = bytes.readUInt32LE(12);
-  const header = JSON.parse(bytes.subarray(24, 24 + h).toString("utf8"));
-  const s = header.sections.find((x) => x.name === "b0.k2");
-  const damaged = Buffer.from(bytes);
-  damaged[24 + h + s.offset + Math.floor(s.size / 2)] ^= 0x5a;
-  writeFileSync(broken, damaged);
-  out.woven_broken = broken;
+  // Packages damaged in one section: the header and the sections before it read fine, then the
+  // checksum of that section fails. fmf in its third component; the other codecs in a section of
+  // their own model (clusters, angular up-sampling, a component of the second view group).
+  const damage = (id, from, section) => {
+    const file = path.join(FIXTURES, `${id}.btfpkg`);
+    const bytes = readFileSync(out[from]);
+    const h = bytes.readUInt32LE(12);
+    const header = JSON.parse(bytes.subarray(24, 24 + h).toString("utf8"));
+    const s = header.sections.find((x) => x.name === section);
+    const damaged = Buffer.from(bytes);
+    damaged[24 + h + s.offset + Math.floor(s.size / 2)] ^= 0x5a;
+    writeFileSync(file, damaged);
+    out[id] = file;
+  };
+  damage("woven_broken", "woven_fabric", "b0.k2");
+  damage("woven_lpca_broken", "woven_lpca", "clusters");
+  damage("woven_perceptual_broken", "woven_perceptual", "angular");
+  damage("woven_pca_broken", "woven_pca", "b1.k0");
   return { bin, h5, packages: out };
 }
 

@@ -21,7 +21,7 @@ before(async () => {
   mkdirSync(path.dirname(out), { recursive: true });
   await build({
     stdin: {
-      contents: ["half", "package", "interp", "fmf", "meshes", "scene", "reference", "cache", "bsvtf"].map((m) => `export * from "./src/${m}";`).join("\n"),
+      contents: ["half", "package", "interp", "factor", "meshes", "scene", "reference", "cache", "bsvtf"].map((m) => `export * from "./src/${m}";`).join("\n"),
       resolveDir: WEB,
       loader: "ts",
     },
@@ -141,12 +141,14 @@ test("the package reader accepts clean prefixes and reports damage like the C++ 
 function decode(file) {
   const bytes = bytesOf(file);
   const { header, sections } = readAll(bytes);
-  const info = M.readFmfHeader(path.basename(file), header.json);
-  const model = new M.FmfModel(info);
+  const info = M.readFactorHeader(path.basename(file), header.json);
+  const model = new M.FactorModel(info);
   let tables = null;
   for (const s of sections) {
     if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
-    else if (s.entry.name === "means") model.means = M.decodeMeans(info, s.data);
+    else if (s.entry.name === "means") model.setMeans(s.data);
+    else if (s.entry.name === "clusters") model.setClusters(s.data);
+    else if (s.entry.name === "angular") model.setAngular(s.data);
     else model.addComponent(s.entry.name, s.data);
   }
   return { info, model, tables, bytes, sections };
@@ -171,17 +173,29 @@ const QUERIES = [
   { uv: [0.51, 0.49], light: [88, 170], view: [52, 33] },
 ];
 
-test("the CPU evaluator matches `btf eval` for every colour, log and quantization variant", () => {
-  for (const id of ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11"]) {
+/** n random queries (uv anywhere, both directions over the hemisphere, grazing included) from a seed. */
+function randomQueries(n, seed) {
+  let x = seed >>> 0;
+  const next = () => ((x = (Math.imul(x, 1664525) + 1013904223) >>> 0) / 2 ** 32);
+  return Array.from({ length: n }, () => ({
+    uv: [next() * 3 - 1, next() * 3 - 1],
+    light: [Math.acos(next()) * (180 / Math.PI), next() * 360],
+    view: [Math.acos(next()) * (180 / Math.PI), next() * 360],
+  }));
+}
+
+test("the CPU evaluator matches `btf eval` for every factor codec and colour, log and quantization variant", () => {
+  const ids = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_pca_declog", "woven_lpca", "woven_lpca_dec", "woven_perceptual", "woven_perceptual_u8"];
+  ids.forEach((id, i) => {
     const { model, tables } = decode(fx.packages[id]);
-    for (const q of QUERIES) {
+    for (const q of [...QUERIES, ...randomQueries(20, 17 + i)]) {
       const wi = dirVec(...q.light), wo = dirVec(...q.view);
       const got = model.evalWeights(q.uv[0], q.uv[1], M.lookup(tables.views, ...wo), M.lookup(tables.lights, ...wi));
       const want = cliEval(fx.packages[id], q.uv, q.light, q.view);
       for (let c = 0; c < 3; ++c)
         assert.ok(Math.abs(got[c] - want[c]) <= 2e-5 + 1e-4 * Math.abs(want[c]), `${id} ${JSON.stringify(q)}: ${got} vs ${want}`);
     }
-  }
+  });
 });
 
 test("a prefix of a package evaluates like the C++ reader's prefix (components present only)", () => {
@@ -198,16 +212,49 @@ test("a prefix of a package evaluates like the C++ reader's prefix (components p
   }
 });
 
-test("other codecs and model layouts are refused as unsupported", () => {
-  const { header } = readAll(bytesOf(fx.packages.woven_pca));
-  assert.throws(() => M.readFmfHeader("woven_pca", header.json), (e) => e instanceof M.UnsupportedMaterial && /codec 'pca-views' is not supported by the viewer/.test(e.message));
+test("the fixtures cover every model layout: view groups, clusters, spatial and angular levels, lab colour", () => {
+  const info = (id) => decode(fx.packages[id]).info;
+  assert.equal(info("woven_pca").codec, "pca-views");
+  assert.ok(info("woven_pca").groups.length > 1);
+  assert.ok(info("woven_lpca").clusters > 1);
+  const perceptual = info("woven_perceptual");
+  assert.equal(perceptual.colour, "lab");
+  assert.ok(perceptual.levels > 1, "spatial levels");
+  assert.ok(perceptual.angularLevels.length > 0, "angular levels");
+  assert.ok(perceptual.blocks.some((b) => b.level > 0 && b.components > 0), "components at a reduced spatial level");
+  assert.ok(perceptual.blocks.some((b) => b.angular > 0 && b.components > 0), "components at a reduced angular level");
+});
+
+test("other codecs are refused as unsupported; malformed model fields are errors", () => {
   const fmf = readAll(bytesOf(fx.packages.woven_fabric)).header.json;
+  const other = structuredClone(fmf);
+  other.codec = "neural";
+  assert.throws(() => M.readFactorHeader("m", other), (e) => e instanceof M.UnsupportedMaterial && /codec 'neural' is not supported by the viewer/.test(e.message));
   const clustered = structuredClone(fmf);
   clustered.model.clusters = 4;
-  assert.throws(() => M.readFmfHeader("m", clustered), (e) => e instanceof M.UnsupportedMaterial && /4 texel clusters/.test(e.message));
-  const lab = structuredClone(fmf);
-  lab.model.colour = "lab";
-  assert.throws(() => M.readFmfHeader("m", lab), (e) => e instanceof M.UnsupportedMaterial);
+  assert.throws(() => M.readFactorHeader("m", clustered), /m: package \(fmf\): 1 blocks for 1 planes × 1 groups × 4 clusters/);
+  const twice = structuredClone(readAll(bytesOf(fx.packages.woven_pca)).header.json);
+  twice.model.groups[1][0] = twice.model.groups[0][0];
+  assert.throws(() => M.readFactorHeader("m", twice), /view \d+ is in two view groups/);
+  const lablog = structuredClone(readAll(bytesOf(fx.packages.woven_perceptual)).header.json);
+  lablog.model.log = true;
+  assert.throws(() => M.readFactorHeader("m", lablog), /log with lab colour/);
+});
+
+test("damaged model sections give one clear error naming the section", () => {
+  const { info, sections } = decode(fx.packages.woven_lpca);
+  const model = new M.FactorModel(info);
+  const clusters = sections.find((s) => s.entry.name === "clusters").data.slice();
+  new DataView(clusters.buffer).setInt32(4 * 5, 99, true);
+  assert.throws(() => model.setClusters(clusters), /section 'clusters': texel 5 is in cluster 99 of 4/);
+  assert.throws(() => model.addComponent("b0.k0", new Uint8Array(10)), /section 'b0.k0' arrives before section 'clusters'/);
+  const p = decode(fx.packages.woven_perceptual);
+  const angular = p.sections.find((s) => s.entry.name === "angular").data;
+  assert.throws(() => new M.FactorModel(p.info).setAngular(angular.subarray(0, angular.length - 4)), /section 'angular' holds \d+ bytes, expected \d+/);
+  const first = p.sections.find((s) => /^b\d+\.k0$/.test(s.entry.name) && p.info.blocks[Number(s.entry.name.slice(1, s.entry.name.indexOf(".")))].angular > 0);
+  const block = Number(first.entry.name.slice(1, first.entry.name.indexOf(".")));
+  const fresh = new M.FactorModel(p.info);
+  assert.throws(() => fresh.addComponent(`b${block}.k0`, first.data), /needs section 'angular'/);
 });
 
 test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {
@@ -368,7 +415,7 @@ test("BSVTF tiles decode to the eigen-textures: lossless exactly, lossy within t
   assert.equal(info.groups.length, 2);
   // The fmf package's eigen-texture columns b(·, k) (f16: the stored half bits).
   const fmf = decode(fx.packages.woven_fabric);
-  const rows = M.blockRows(fmf.info);
+  const rows = M.groupRows(fmf.info, 0);
   const column = (k) => {
     const s = fmf.sections.find((x) => x.entry.name === `b0.k${k}`);
     return M.columnHalfBits(s.data, M.columnBytes("f16", rows), fmf.info.width * fmf.info.height);

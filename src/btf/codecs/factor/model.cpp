@@ -487,7 +487,10 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     package.sections.push_back(std::move(means));
 
     // Components in decreasing energy over all blocks. Within a block the order must stay
-    // k = 0, 1, …, so a component's sort key is the smallest energy up to it.
+    // k = 0, 1, …, so a component's sort key is the smallest energy up to it. With several view
+    // groups (pca-views), components go in rounds instead, the thesis' progressive order: the
+    // k-th component of every block before any (k+1)-th, so that a viewer has every group's
+    // first component (a first picture of every view) after the first round.
     struct Entry {
         float key;
         int block, k;
@@ -500,8 +503,11 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
             order.push_back({key, static_cast<int>(i), k});
         }
     }
-    std::stable_sort(order.begin(), order.end(),
-                     [](const Entry& x, const Entry& y) { return x.key > y.key; });
+    const bool rounds = model.groups.size() > 1;
+    std::stable_sort(order.begin(), order.end(), [rounds](const Entry& x, const Entry& y) {
+        if (rounds && x.k != y.k) return x.k < y.k;
+        return x.key > y.key;
+    });
     for (const Entry& e : order) {
         const Block& b = model.blocks[e.block];
         PackageSection s = named_section(component_name(e.block, e.k));
