@@ -9,6 +9,7 @@ import { FACTOR_CODECS, type FactorInfo, type Layout } from "./factor";
 import type { FromWorker, InterpUniforms, ToWorker } from "./protocol";
 import { TABLE_WIDTH } from "./protocol";
 import { MAX_TILE_LEVELS, factorPart } from "./shader";
+import { mlvqFragment, type TextureSpec } from "./mlvq";
 import { fetchRange, openStream, type MaterialEntry } from "./stream";
 
 export interface MaterialState {
@@ -19,6 +20,8 @@ export interface MaterialState {
   components: number;
   totalComponents: number;
   unit: string;
+  /** Bytes of the textures this material uploads (the page's shared tile cache not included). */
+  gpuBytes: number;
   /** Tables and at least one component (or the whole stream) are on the GPU: objects render. */
   ready: boolean;
   /** The stream ended (completely or at a section boundary). */
@@ -43,6 +46,24 @@ export interface GpuLimits {
   maxArrayLayers: number;
 }
 
+/** THREE's format and type of each sized format a codec module's texture may have. */
+const TEXTURE_FORMATS: Record<TextureSpec["format"], [THREE.PixelFormat, THREE.TextureDataType]> = {
+  R32F: [THREE.RedFormat, THREE.FloatType],
+  RG32F: [THREE.RGFormat, THREE.FloatType],
+  RGBA32F: [THREE.RGBAFormat, THREE.FloatType],
+  R16F: [THREE.RedFormat, THREE.HalfFloatType],
+  RGBA16F: [THREE.RGBAFormat, THREE.HalfFloatType],
+  R32I: [THREE.RedIntegerFormat, THREE.IntType],
+  RG32I: [THREE.RGIntegerFormat, THREE.IntType],
+  RGBA32I: [THREE.RGBAIntegerFormat, THREE.IntType],
+  R32UI: [THREE.RedIntegerFormat, THREE.UnsignedIntType],
+  RGBA32UI: [THREE.RGBAIntegerFormat, THREE.UnsignedIntType],
+  R8UI: [THREE.RedIntegerFormat, THREE.UnsignedByteType],
+  RGBA8UI: [THREE.RGBAIntegerFormat, THREE.UnsignedByteType],
+  R8: [THREE.RedFormat, THREE.UnsignedByteType],
+  RGBA8: [THREE.RGBAFormat, THREE.UnsignedByteType],
+};
+
 /** The codecs whose packages the viewer renders. */
 export const VIEWER_CODECS: string[] = [...FACTOR_CODECS, "mlvq", "bsvtf"];
 
@@ -55,7 +76,10 @@ export class MaterialView {
   info: FactorInfo | null = null;
   layout: Layout | null = null;
   /** The codec part of the surface's fragment shader (shader.ts). */
-  readonly codecPart: string = factorPart;
+  readonly codecPart: string;
+  /** Packages decoded by a codec module (mlvq): its textures by sampler uniform. */
+  private moduleTextures = new Map<string, THREE.DataTexture | THREE.DataArrayTexture>();
+  private moduleHeader = false;
   /** Called when something changed that a new frame would show. */
   onChange: () => void = () => {};
   /** Called when bytes arrived (for the HUD; nothing to draw yet). */
@@ -90,6 +114,7 @@ export class MaterialView {
     transport: "auto" | "websocket" | "http",
     private readonly limits: GpuLimits,
   ) {
+    this.codecPart = entry.codec === "mlvq" ? mlvqFragment : factorPart;
     this.state = {
       id: entry.id,
       bytes: 0,
@@ -97,6 +122,7 @@ export class MaterialView {
       components: 0,
       totalComponents: 0,
       unit: "components",
+      gpuBytes: 0,
       times: { start: performance.now(), ready: null, received: null, decoded: null },
       ready: false,
       done: false,
@@ -131,6 +157,13 @@ export class MaterialView {
       uMipLevels: { value: 1 },
       uEnvScale: { value: 1 },
     };
+    // A codec module's uniforms, declared up front: the objects' shader materials copy this
+    // record's entries when they are made.
+    for (const m of this.codecPart.matchAll(/^uniform\s+(?:(?:lowp|mediump|highp)\s+)?(\w+)\s+(\w+)\s*;/gm)) {
+      const [, type, name] = m;
+      const size = { vec2: 2, ivec2: 2, vec3: 3, ivec3: 3, vec4: 4, ivec4: 4 }[type as "vec2"];
+      this.uniforms[name] ??= { value: type.includes("sampler") ? null : size ? new Array(size).fill(0) : 0 };
+    }
     if (entry.codec === "bsvtf")
       Object.assign(this.uniforms, {
         uIndir: { value: null },
@@ -279,13 +312,34 @@ export class MaterialView {
       changed = true;
       if (performance.now() - start >= budgetMs) break;
     }
+    if (changed) this.state.gpuBytes = this.textures().reduce((n, t) => n + (t.image.data as ArrayBufferView).byteLength, 0);
     return changed;
   }
 
   private apply(msg: FromWorker): void {
     // A header the GPU cannot hold leaves no textures: nothing after it can be applied.
-    if (msg.type !== "header" && !this.info) return;
+    if (msg.type !== "header" && msg.type !== "codecHeader" && !this.info && !this.moduleHeader) return;
     switch (msg.type) {
+      case "codecHeader": {
+        this.moduleHeader = true;
+        this.state.total = msg.totalBytes;
+        this.state.codec = msg.codec;
+        this.state.unit = msg.unit;
+        this.state.components = msg.present;
+        this.state.totalComponents = msg.total;
+        this.uniforms.uSize.value = [msg.width, msg.height];
+        return;
+      }
+      case "codecUpdate": {
+        for (const spec of msg.textures) if (!this.uploadModuleTexture(spec)) return;
+        for (const [name, value] of Object.entries(msg.uniforms)) {
+          if (!this.uniforms[name]) throw new Error(`the codec module set uniform '${name}', which its shader part does not declare`);
+          this.uniforms[name].value = value;
+        }
+        this.state.components = msg.present;
+        if (msg.ready) this.markReady();
+        return;
+      }
       case "header":
         return this.applyHeader(msg.info, msg.layout, msg.blocks, msg.totalBytes, msg.bsvtf);
       case "tables": {
@@ -487,9 +541,50 @@ export class MaterialView {
     });
   }
 
+  // Creates or refills the texture of a codec module's sampler; false (and the material's error)
+  // when the GPU cannot hold it.
+  private uploadModuleTexture(spec: TextureSpec): boolean {
+    const { maxTextureSize, maxArrayLayers } = this.limits;
+    if (spec.width > maxTextureSize || spec.height > maxTextureSize || spec.depth > maxArrayLayers) {
+      this.setError(`${this.entry.id}: texture ${spec.uniform} of ${spec.width} × ${spec.height} × ${spec.depth} texels exceeds this GPU's limits (${maxTextureSize} texels, ${maxArrayLayers} layers)`, true);
+      return false;
+    }
+    let tex = this.moduleTextures.get(spec.uniform);
+    if (tex && (tex.image.width !== spec.width || tex.image.height !== spec.height)) {
+      tex.dispose();
+      tex = undefined;
+    }
+    if (!tex) {
+      const [format, type] = TEXTURE_FORMATS[spec.format];
+      tex =
+        spec.kind === "2d"
+          ? new THREE.DataTexture(spec.data, spec.width, spec.height, format, type)
+          : new THREE.DataArrayTexture(spec.data, spec.width, spec.height, spec.depth);
+      tex.format = format;
+      tex.type = type;
+      tex.internalFormat = spec.format;
+      tex.minFilter = tex.magFilter = THREE.NearestFilter;
+      tex.generateMipmaps = false;
+      tex.unpackAlignment = 1;
+      this.moduleTextures.set(spec.uniform, tex);
+      if (!this.uniforms[spec.uniform]) throw new Error(`the codec module made texture '${spec.uniform}', which its shader part does not declare`);
+      this.uniforms[spec.uniform].value = tex;
+    } else {
+      tex.image.data = spec.data as never;
+    }
+    tex.needsUpdate = true;
+    return true;
+  }
+
+  /** The textures this material owns. */
+  private textures(): (THREE.DataTexture | THREE.DataArrayTexture)[] {
+    const all = [this.a, this.b, this.means, this.tabF, this.tabI, this.blocks, this.viewGroup, this.texelCluster, this.bsvtf?.indirection, ...this.moduleTextures.values()];
+    return all.filter((t): t is THREE.DataTexture | THREE.DataArrayTexture => !!t);
+  }
+
   dispose(): void {
     this.stop?.();
     this.worker?.terminate();
-    for (const t of [this.a, this.b, this.means, this.tabF, this.tabI, this.blocks, this.viewGroup, this.texelCluster, this.bsvtf?.indirection]) t?.dispose();
+    for (const t of this.textures()) t.dispose();
   }
 }

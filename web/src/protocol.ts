@@ -2,6 +2,7 @@
 
 import type { BsvtfInfo } from "./bsvtf";
 import type { FactorInfo, Layout } from "./factor";
+import type { TextureSpec } from "./mlvq";
 
 /** Uniform values that locate one direction set's tables in the table textures. */
 export interface InterpUniforms {
@@ -48,6 +49,23 @@ export type FromWorker =
       /** Set for a BSVTF package: the eigen-textures come as tiles, not in component sections. */
       bsvtf: BsvtfInfo | null;
     }
+  /**
+   * The header of a package decoded by a codec module (mlvq): what the page needs to know before
+   * any texture arrives.
+   */
+  | {
+      type: "codecHeader";
+      codec: string;
+      width: number;
+      height: number;
+      totalBytes: number;
+      sections: { name: string; offset: number; size: number }[];
+      present: number;
+      total: number;
+      unit: string;
+    }
+  /** A codec module's textures and uniforms after a section, and whether it can draw. */
+  | { type: "codecUpdate"; textures: TextureSpec[]; uniforms: Record<string, number | number[]>; ready: boolean; present: number }
   /** BSVTF: the tiles.index section. */
   | { type: "tileIndex"; weights: Float32Array; sizes: Uint32Array; offsets: Float64Array }
   /** BSVTF: a decoded tile, or why it could not be decoded. */

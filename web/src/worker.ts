@@ -18,6 +18,7 @@ import {
   type FactorInfo,
   type Layout,
 } from "./factor";
+import { MlvqDecoder, readMlvqHeader } from "./mlvq";
 import { decodeTile, layoutOf, predictChild, readBsvtfHeader, readTileIndex, type BsvtfInfo } from "./bsvtf";
 import type { TileLayout } from "./cache";
 import { floatToHalf, halfToFloat } from "./half";
@@ -47,6 +48,8 @@ let failed = false;
 let bsvtf: BsvtfInfo | null = null;
 let tileLayout: TileLayout | null = null;
 let header: PackageHeader | null = null;
+/** mlvq packages: the codec module that decodes them (null for the factor codecs). */
+let mlvq: MlvqDecoder | null = null;
 
 // The checksum's WebAssembly module is instantiated once, when the worker starts; messages that
 // arrive before it is ready wait in `pending` and are then handled in order.
@@ -68,6 +71,22 @@ function fail(e: unknown): void {
 
 function onHeader(h: PackageHeader): void {
   header = h;
+  if (h.json.codec === "mlvq") {
+    mlvq = new MlvqDecoder(readMlvqHeader(name, h.json));
+    const p = mlvq.progress();
+    post({
+      type: "codecHeader",
+      codec: "mlvq",
+      width: mlvq.info.materials[0].width,
+      height: mlvq.info.materials[0].height,
+      totalBytes: h.totalBytes,
+      sections: h.sections.map((s) => ({ name: s.name, offset: h.headerBytes + s.offset, size: s.size })),
+      present: p.present,
+      total: p.total,
+      unit: p.unit,
+    });
+    return;
+  }
   if (h.json.codec === "bsvtf") {
     // A BSVTF package (docs/bsvtf.md): the fmf header of its source describes the angular part;
     // the eigen-textures come as tiles (requested by the page), the angular factors as U packets.
@@ -223,6 +242,13 @@ function packTables(views: InterpTables, lights: InterpTables): FromWorker & { t
 
 function onSection(s: DecodedSection): void {
   post({ type: "section", name: s.entry.name, index: s.index, end: s.fileOffset + s.entry.size });
+  if (mlvq) {
+    mlvq.addSection(s.entry.name, s.data);
+    // Copies: the decoder keeps its arrays and fills them further with later sections.
+    const textures = mlvq.textures().map((t) => ({ ...t, data: t.data.slice() }));
+    post({ type: "codecUpdate", textures, uniforms: mlvq.uniforms(), ready: mlvq.ready, present: mlvq.progress().present }, textures.map((t) => t.data.buffer));
+    return;
+  }
   const i = info!, L = layout!, m = model!;
   const sectionName = s.entry.name;
   if (sectionName === "tables") {
@@ -327,7 +353,13 @@ function onSection(s: DecodedSection): void {
 function evaluate(id: number, q: Float64Array, environment: boolean): void {
   const n = Math.floor(q.length / 8);
   const values = new Float64Array(3 * n).fill(NaN);
-  if (model && tables && envWeights && !failed) {
+  if (mlvq && mlvq.ready && !failed) {
+    for (let j = 0; j < n; ++j) {
+      const o = 8 * j;
+      const wo: [number, number, number] = [q[o + 5], q[o + 6], q[o + 7]];
+      values.set(environment ? mlvq.albedo(q[o], q[o + 1], wo) : mlvq.eval(q[o], q[o + 1], [q[o + 2], q[o + 3], q[o + 4]], wo), 3 * j);
+    }
+  } else if (model && tables && envWeights && !failed) {
     for (let j = 0; j < n; ++j) {
       const o = 8 * j;
       const vw = lookup(tables.views, q[o + 5], q[o + 6], q[o + 7]);

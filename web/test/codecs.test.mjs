@@ -20,6 +20,7 @@ export const CODEC_FIXTURES = {
   "pca-views": "woven_pca",
   lpca: "woven_lpca",
   perceptual: "woven_perceptual",
+  mlvq: "woven_mlvq",
 };
 
 let fx, server, browser;
@@ -28,7 +29,7 @@ before(async () => {
   fx = makeFixtures();
   rmSync(OUT, { recursive: true, force: true });
   mkdirSync(OUT, { recursive: true });
-  const site = makeSite("codecs-site", fx.packages, Object.values(CODEC_FIXTURES));
+  const site = makeSite("codecs-site", fx.packages, [...Object.values(CODEC_FIXTURES), "leather_mlvq"]);
   server = await startServer(site);
   browser = await launchBrowser();
 });
@@ -121,6 +122,50 @@ test("pca-views: a first picture once every view group's first component is in, 
     await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
     const d = frames.map((f) => meanDiff(f, frames[frames.length - 1]));
     writeFileSync(path.join(OUT, "pca-views-progressive.json"), JSON.stringify({ meanAbsDiffToFinal: d }, null, 1));
+    for (let k = 1; k < d.length; ++k) assert.ok(d[k] <= d[k - 1] + 0.05, `difference to the final frame grew: ${d.map((x) => x.toFixed(3))}`);
+    assert.ok(d[0] > 0.2, `no visible refinement: ${d.map((x) => x.toFixed(3))}`);
+    assert.deepEqual(problems, []);
+  } finally {
+    server.releaseAll(id);
+    await page.close();
+  }
+});
+
+test("mlvq: P6 streams coarse to fine, a first picture with the code-books and the coarsest level, then sharper with each level", async () => {
+  const id = "leather_mlvq";
+  const entry = listEntry(id, fx.packages[id], false);
+  const levels = entry.sections.filter((s) => /^P6\.\d+$/.test(s.name));
+  assert.deepEqual(
+    levels.map((s) => s.name),
+    levels.map((_, i) => `P6.${levels.length - 1 - i}`),
+    "P6 levels from the coarsest to level 0",
+  );
+  assert.ok(levels.length >= 3, `${levels.length} P6 levels`);
+  const codebooks = entry.sections.find((s) => s.name === "codebooks");
+  // Hold the body after the code-books, then at the end of every level but the last.
+  server.hold(id, [codebooks.offset + codebooks.size, ...levels.slice(0, -1).map((s) => s.offset + s.size)]);
+  const { page, problems } = await openPage(browser, server.url, `material=${id}&size=128x128&deterministic=1&mip=0&hud=0`);
+  try {
+    // The code-books alone are no picture (open_all needs the coarsest P6 level).
+    await page.waitForFunction(() => window.btfViewer.state.materials[0]?.sections === 1, null, { timeout: PATIENCE_MS });
+    const early = await state(page);
+    assert.equal(early.materials[0].ready, false);
+    assert.equal(early.materials[0].unit, "P6 levels");
+    const frames = [];
+    for (let l = 0; l < levels.length; ++l) {
+      server.release(id);
+      await page.waitForFunction((n) => window.btfViewer.state.materials[0]?.components === n, l + 1, { timeout: PATIENCE_MS });
+      const s = await state(page);
+      assert.equal(s.materials[0].bytes, levels[l].offset + levels[l].size, "frame drawn from exactly the bytes up to this level");
+      assert.ok(s.materials[0].ready && s.objects[0].visible);
+      await render(page);
+      frames.push(await pixels(page));
+      writePpm(path.join(OUT, `mlvq-level-${levels.length - 1 - l}.ppm`), frames[frames.length - 1]);
+      await page.locator("canvas").screenshot({ path: path.join(OUT, `mlvq-level-${levels.length - 1 - l}.png`) });
+    }
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
+    const d = frames.map((f) => meanDiff(f, frames[frames.length - 1]));
+    writeFileSync(path.join(OUT, "mlvq-progressive.json"), JSON.stringify({ meanAbsDiffToFinal: d }, null, 1));
     for (let k = 1; k < d.length; ++k) assert.ok(d[k] <= d[k - 1] + 0.05, `difference to the final frame grew: ${d.map((x) => x.toFixed(3))}`);
     assert.ok(d[0] > 0.2, `no visible refinement: ${d.map((x) => x.toFixed(3))}`);
     assert.deepEqual(problems, []);

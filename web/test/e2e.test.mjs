@@ -24,10 +24,13 @@ const IDS = [
   "woven_lpca_dec",
   "woven_perceptual",
   "woven_perceptual_u8",
+  "woven_mlvq",
+  "woven_mlvq_logluv",
   "woven_broken",
   "woven_lpca_broken",
   "woven_perceptual_broken",
   "woven_pca_broken",
+  "woven_mlvq_broken",
 ];
 
 let fx, site, server, browser;
@@ -201,7 +204,7 @@ test("the WebSocket stream renders the same frame, and a cut socket resumes over
   }
 });
 
-test("every factor codec, colour variants (UBO2014 model 11 too), log, quantizations, the environment and several objects match the CPU reference", async () => {
+test("every codec, colour variants (UBO2014 model 11 too), log, quantizations, the environment and several objects match the CPU reference", async () => {
   const cases = [
     { name: "pca-views", query: "material=woven_pca&light=1,2,1.5" },
     { name: "pca-views-declog-env", query: "material=woven_pca_declog&env=0.6" },
@@ -209,6 +212,9 @@ test("every factor codec, colour variants (UBO2014 model 11 too), log, quantizat
     { name: "lpca-decorrelated-env", query: "material=woven_lpca_dec&env=0.5&light=1,1,0.5" },
     { name: "perceptual", query: "material=woven_perceptual&light=1,2,1.5" },
     { name: "perceptual-u8-env", query: "material=woven_perceptual_u8&env=0.6" },
+    { name: "mlvq", query: "material=woven_mlvq&light=1,2,1.5" },
+    { name: "mlvq-env", query: "material=woven_mlvq&env=0.6&light=-1,1,1" },
+    { name: "mlvq-logluv", query: "material=woven_mlvq_logluv&light=-1,2,1.5" },
     { name: "declog-env", query: "material=woven_declog&env=0.6&exposure=0.5" },
     { name: "two-objects", query: "objects=sphere:woven_perchannel@-1.3,0,0;torus:woven_fabric@1.3,0,0&camera=0,2.5,5.5&light=-1,2,1.5" },
     { name: "ubo2014-model11", query: "material=woven_model11&light=1,2,1.5" },
@@ -282,6 +288,7 @@ test("the page says clearly what went wrong", async () => {
     ["woven_lpca_broken", "clusters"],
     ["woven_perceptual_broken", "angular"],
     ["woven_pca_broken", "b1.k0"],
+    ["woven_mlvq_broken", "P6.1"],
   ]) {
     const { page, problems } = await openPage(`objects=sphere:${id}@-1.3,0,0;sphere:woven_fabric@1.3,0,0&camera=0,1,5&size=96x64&deterministic=1&hud=0`);
     try {

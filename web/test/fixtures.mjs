@@ -66,6 +66,10 @@ export const PACKAGES = {
   woven_perceptual: ["--codec", "perceptual", "--components", "10", "-p", "quality=0.6"],
   // perceptual: one level, row means, u8
   woven_perceptual_u8: ["--codec", "perceptual", "--components", "6", "-p", "mean=true", "--quantize", "u8"],
+  // mlvq: YCbCr colour (the default for an LDR source), P6 in 5 levels
+  woven_mlvq: ["--codec", "mlvq"],
+  // mlvq: LogLuv colour
+  woven_mlvq_logluv: ["--codec", "mlvq", "-p", "colour=logluv"],
 };
 
 export function makeFixtures() {
@@ -85,6 +89,13 @@ export function makeFixtures() {
     }
     out[id] = file;
   }
+  // mlvq's progressive P6 of a material whose spatial structure its coarse levels resolve: the
+  // leather preset (woven_fabric's weave at 32² is finer than P6 levels 3 and 2 sample it, so
+  // those levels alias; see docs/viewer.md).
+  const leather = path.join(FIXTURES, "leather.h5");
+  if (!existsSync(leather)) run(bin, ["-q", "synth", "--preset", "leather", "--size", "32", "-o", leather]);
+  out.leather_mlvq = path.join(FIXTURES, "leather_mlvq.btfpkg");
+  if (!existsSync(out.leather_mlvq)) run(bin, ["-q", "compress", leather, "--codec", "mlvq", "--no-error", "-o", out.leather_mlvq]);
   // BSVTF packages of the first (btf bsvtf): tiles of 8 texels plus 4 of padding, so that the
   // 32² material has three levels; lossy (the default 1 % tile error) and lossless.
   for (const [name, extra] of [["woven_fabric.bsvtf", []], ["woven_lossless.bsvtf", ["--lossless"]]]) {
@@ -125,6 +136,7 @@ export function makeFixtures() {
   damage("woven_lpca_broken", "woven_lpca", "clusters");
   damage("woven_perceptual_broken", "woven_perceptual", "angular");
   damage("woven_pca_broken", "woven_pca", "b1.k0");
+  damage("woven_mlvq_broken", "woven_mlvq", "P6.1");
   return { bin, h5, packages: out };
 }
 
