@@ -794,53 +794,57 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
     const Codebooks& b = *m_books;
     const MlvqGrid& g = b.grid;
     const MlvqWeights view = lookup(g, to_mlvq(Vec3{0, 0, 1}, wo));
+    // Per grid sample (α_i, β_j): the planes blended over the 4 texels × 2 φv × 2 θv corners, as
+    // eval() blends them at that sample. Each sample is read from its own α slice, also at the
+    // poles of β, where a direction would not say which slice it belongs to.
+    const int samples = g.n_alpha * g.n_beta;
+    std::vector<double> y(size_t(samples), 0.0), c1(size_t(samples), 0.0), c2(size_t(samples), 0.0);
+    const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
+    const DecodedBooks& d = *m_decoded;
+    for (int k = 0; k < 4; ++k) {
+        if (corners.weight[k] == 0) continue;
+        const IndexScale& e6 = m_index.p6[size_t(corners.texel[k])];
+        for (int p = 0; p < 2; ++p)
+            for (int q = 0; q < 2; ++q) {
+                const double wt =
+                    double(corners.weight[k]) * view.phi_v.weight[p] * view.theta_v.weight[q];
+                if (wt == 0) continue;
+                const IndexScale& v = d.view(e6.index, view.phi_v.index[p], view.theta_v.index[q]);
+                const DecodedBooks::Sample* f = d.entry(v.index);
+                const double ys = wt * e6.scale * v.scale;
+                for (int s = 0; s < samples; ++s) {
+                    const std::array<float, 2> c = d.chroma(f[s]);
+                    y[size_t(s)] += ys * DecodedBooks::luminance(f[s]);
+                    c1[size_t(s)] += wt * c[0];
+                    c2[size_t(s)] += wt * c[1];
+                }
+            }
+    }
+    double r = 0, gg = 0, bb = 0;
     if (b.colour == ColourModel::kYCbCr) {
         // Linear in (Y, Cb, Cr): integrate the planes, then convert.
-        double y = 0, c1 = 0, c2 = 0;
-        const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
-        const int64_t* t = corners.texel;
-        const float* s = corners.weight;
-        const DecodedBooks& d = *m_decoded;
-        for (int k = 0; k < 4; ++k) {
-            if (s[k] == 0) continue;
-            const IndexScale& e6 = m_index.p6[size_t(t[k])];
-            for (int p = 0; p < 2; ++p)
-                for (int q = 0; q < 2; ++q) {
-                    const double wt = double(s[k]) * view.phi_v.weight[p] * view.theta_v.weight[q];
-                    if (wt == 0) continue;
-                    const IndexScale& v =
-                        d.view(e6.index, view.phi_v.index[p], view.theta_v.index[q]);
-                    const DecodedBooks::Sample* f = d.entry(v.index);
-                    double sy = 0, s1 = 0, s2 = 0;
-                    for (int i = 0; i < g.n_alpha; ++i)
-                        for (int j = 0; j < g.n_beta; ++j) {
-                            const double lw = g.light_weight(i, j);
-                            const DecodedBooks::Sample& smp = f[i * g.n_beta + j];
-                            sy += lw * DecodedBooks::luminance(smp);
-                            const std::array<float, 2> c = d.chroma(smp);
-                            s1 += lw * c[0];
-                            s2 += lw * c[1];
-                        }
-                    y += wt * e6.scale * v.scale * sy;
-                    c1 += wt * s1;
-                    c2 += wt * s2;
-                }
+        double sy = 0, s1 = 0, s2 = 0;
+        for (int s = 0; s < samples; ++s) {
+            const double lw = g.light_weight(s / g.n_beta, s % g.n_beta);
+            sy += lw * y[size_t(s)];
+            s1 += lw * c1[size_t(s)];
+            s2 += lw * c2[size_t(s)];
         }
-        const Rgb integral = from_planes(b.colour, float(y), float(c1), float(c2));
-        return {float(integral.r / kPi), float(integral.g / kPi), float(integral.b / kPi)};
-    }
-    // LogLuv: the conversion is not linear; sum the converted grid samples instead.
-    double r = 0, gg = 0, bb = 0;
-    for (int i = 0; i < g.n_alpha; ++i)
-        for (int j = 0; j < g.n_beta; ++j) {
-            const Vec3 wi =
-                direction_from_onion_u(g.alpha(i), g.sin_beta(j), to_mlvq(Vec3{0, 0, 1}, wo).phi_v);
-            const Rgb v = eval(uv, wi, wo);
-            const double lw = g.light_weight(i, j);
+        const Rgb integral = from_planes(b.colour, float(sy), float(s1), float(s2));
+        r = integral.r;
+        gg = integral.g;
+        bb = integral.b;
+    } else {
+        // LogLuv: the conversion is not linear; sum the converted samples instead.
+        for (int s = 0; s < samples; ++s) {
+            const double lw = g.light_weight(s / g.n_beta, s % g.n_beta);
+            const Rgb v = from_planes(b.colour, float(y[size_t(s)]), float(c1[size_t(s)]),
+                                      float(c2[size_t(s)]));
             r += lw * v.r;
             gg += lw * v.g;
             bb += lw * v.b;
         }
+    }
     return {float(r / kPi), float(gg / kPi), float(bb / kPi)};
 }
 
