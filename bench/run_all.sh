@@ -19,3 +19,4 @@ echo; echo "## quality: BTF-CIELab wall time and memory"; "$build/btf_cielab_ben
 echo; echo "## quality: perceptual vs fmf at equal size"; bash "$(dirname "$0")/perceptual_vs_fmf.sh" "$build" 16 64 3
 echo; echo "## quality: high-frequency omission"; bash "$(dirname "$0")/perceptual_omission.sh" "$build" 32 64 3
 echo; echo "## mlvq: code-vector search"; "$build/mlvq_vq_bench" --size 64
+echo; echo "## viewer: UBO2014 files as they are"; bash "$(dirname "$0")/ubo2014_bench.sh" "$build"

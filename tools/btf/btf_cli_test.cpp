@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -134,11 +135,14 @@ TEST_F(BtfCli, InterruptedRunLeavesNoFiles) {
 TEST_F(BtfCli, InterruptedCompressionLeavesNoFilesAndKeepsTheOldOutput) {
     // SIGINT while compress reads its source (its progress says so), and SIGINT then SIGTERM (the
     // second signal ends the process at once, through the watchdog): both
-    // stop the run with 130, and the package that was there before is untouched.
+    // stop the run with 130, and the package that was there before is untouched. The source is
+    // 128² so that the run lasts seconds after its first progress line: the process must still be
+    // running when the shell stops it, however busy the machine (64² finished first once, with a
+    // benchmark compressing beside it).
     const fs::path dir = s_dir / "interrupt_compress";
     fs::create_directories(dir);
     const std::string source = (dir / "src.h5").string();
-    ASSERT_EQ(run("synth --preset woven_fabric --size 64 -o " + source).code, 0);
+    ASSERT_EQ(run("synth --preset woven_fabric --size 128 -o " + source).code, 0);
     const fs::path out = dir / "out.btfpkg";
     test::write_file(out, "what the user had");
     for (const std::vector<std::string>& signals :
@@ -495,6 +499,69 @@ TEST_F(BtfCli, ConvertsAUbo2014FileToAPackageWithoutRefactorizing) {
         << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     EXPECT_FALSE(fs::exists(path("x.btfpkg")));
+}
+
+TEST_F(BtfCli, EvalOfAUbo2014FileAndOfItsPackagePrintTheSameValues) {
+    // Between sample directions and texel centres too: `btf eval X.btf` is the fmf evaluator of
+    // the file's own factors, which is what the package holds.
+    const std::string h5 = path("e.h5");
+    CliResult r = run("synth --preset woven_fabric --size 8 --seed 5 --sampling " +
+                      write_small_directions(path("edirs.txt")) + " -o " + h5);
+    ASSERT_EQ(r.code, 0) << r.output;
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> unit(0, 1);
+    std::vector<std::string> queries;
+    for (int i = 0; i < 200; ++i) {
+        // uv beyond [0, 1) (the material wraps), every third light and fifth view grazing.
+        const double light_theta = i % 3 == 0 ? 85 + 5 * unit(rng) : 85 * unit(rng);
+        const double view_theta = i % 5 == 0 ? 85 + 5 * unit(rng) : 85 * unit(rng);
+        queries.push_back(fmt::format("{:.5f},{:.5f} {:.3f},{:.3f} {:.3f},{:.3f}",
+                                      -1 + 3 * unit(rng), -1 + 3 * unit(rng), light_theta,
+                                      360 * unit(rng), view_theta, 360 * unit(rng)));
+    }
+    const std::string list = path("queries.txt");
+    std::ofstream(list) << "# u,v light view\n" << fmt::format("{}\n", fmt::join(queries, "\n"));
+    const auto values = [](const std::string& text) {
+        std::vector<double> out;
+        std::istringstream in(text);
+        for (double x; in >> x;) out.push_back(x);
+        return out;
+    };
+    for (const std::string colour : {"model11", "rgb"})
+        for (const std::string half : {"", " --half"}) {
+            SCOPED_TRACE(colour + half);
+            const std::string btf = path("e.btf"), pkg = path("e.btfpkg");
+            r = run("convert " + h5 + " " + btf + " --components 4 --colour " + colour + half);
+            ASSERT_EQ(r.code, 0) << r.output;
+            r = run("convert " + btf + " " + pkg);
+            ASSERT_EQ(r.code, 0) << r.output;
+            const CliResult file = run("eval " + btf + " --queries " + list);
+            const CliResult package = run("eval " + pkg + " --queries " + list);
+            ASSERT_EQ(file.code, 0) << file.output;
+            ASSERT_EQ(package.code, 0) << package.output;
+            const std::vector<double> a = values(file.output), b = values(package.output);
+            ASSERT_EQ(a.size(), 3 * queries.size()) << file.output;
+            ASSERT_EQ(b.size(), 3 * queries.size()) << package.output;
+            for (size_t i = 0; i < a.size(); ++i)
+                EXPECT_NEAR(a[i], b[i], 1e-4 * std::abs(b[i]) + 1e-6) << queries[i / 3];
+            // One query given as options prints what its line of the list prints.
+            std::istringstream fields(queries[7]);
+            std::string uv, light, view;
+            fields >> uv >> light >> view;
+            r = run("eval " + btf + " --uv " + uv + " --light " + light + " --view " + view);
+            ASSERT_EQ(r.code, 0) << r.output;
+            const std::vector<double> one = values(r.output);
+            ASSERT_EQ(one.size(), 3u) << r.output;
+            for (int c = 0; c < 3; ++c) EXPECT_EQ(one[size_t(c)], a[size_t(21 + c)]);
+        }
+    // A malformed line: one line naming the file and the line, nothing printed.
+    std::ofstream(path("bad.txt")) << "0.5,0.5 30,0 0,0\n0.5,0.5 30,0\n";
+    r = run("eval " + path("e.btf") + " --queries " + path("bad.txt"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("bad.txt: line 2: expected 'u,v theta,phi theta,phi'"),
+              std::string::npos)
+        << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
 }
 
 }  // namespace

@@ -7,11 +7,13 @@
 #include <cmath>
 
 #include "btf/bsvtf/material.h"
+#include "btf/codecs/dfmf_export.h"
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/lpca/lpca.h"
 #include "btf/codecs/mlvq/mlvq.h"
 #include "btf/codecs/pca_views/pca_views.h"
 #include "btf/codecs/perceptual/perceptual.h"
+#include "btf/io/ubo2014.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -109,6 +111,7 @@ std::unique_ptr<Material> open_material(const Package& package) {
 }
 
 std::unique_ptr<Material> open_material(const std::filesystem::path& path) {
+    if (ubo2014::probe(path)) return open_ubo2014_material(path);
     const Package package = read_package(path);
     try {
         return open_material(package);

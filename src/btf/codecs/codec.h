@@ -90,7 +90,8 @@ const Codec& find_codec(std::string_view name);
 /// Opens a package (or a clean prefix) with the codec its header names, or a BSVTF file
 /// (bsvtf/material.h: its finest tiles).
 std::unique_ptr<Material> open_material(const Package& package);
-/// read_package(path) then open_material().
+/// read_package(path) then open_material(); a UBO2014 .btf file is opened as the material of its
+/// own factors (open_ubo2014_material in codecs/dfmf_export.h: the same material as its package).
 std::unique_ptr<Material> open_material(const std::filesystem::path& path);
 
 }  // namespace btf

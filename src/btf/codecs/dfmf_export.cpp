@@ -99,6 +99,20 @@ factor::Model model_of(const ubo2014::Factorization& f, const std::string& what)
     return model;
 }
 
+std::unique_ptr<Material> ubo2014_material(std::shared_ptr<const ubo2014::Factorization> f,
+                                           const std::string& what) {
+    check(f != nullptr, "{}: no factorization", what);
+    if (f->meta.cosine_flag) return ubo2014::make_material(std::move(f));
+    factor::Model model = model_of(*f, what);
+    f.reset();
+    return std::make_unique<factor::FactorMaterial>(std::move(model));
+}
+
+std::unique_ptr<Material> open_ubo2014_material(const std::filesystem::path& path,
+                                                Progress& progress) {
+    return ubo2014_material(ubo2014::read(path, progress), path.string());
+}
+
 Package package_of(const ubo2014::Factorization& f, const std::string& what) {
     const factor::Model model = model_of(f, what);
     bool half = true;

@@ -12,6 +12,8 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <string>
 
 #include "btf/codecs/factor/model.h"
 #include "btf/io/source.h"
@@ -42,6 +44,21 @@ ubo2014::Factorization to_dfmf(const factor::Model& model, int scalar_size,
 /// is reduced). Throws btf::Error naming `what` for a factorization the factor model cannot hold
 /// yet: one whose values were multiplied by cos θ_light (the meta block's cosine flag).
 factor::Model model_of(const ubo2014::Factorization& factorization, const std::string& what);
+
+/// A UBO2014 factorization as a Material: the fmf evaluator (factor::FactorMaterial) of
+/// model_of(`factorization`), the same material as its package (package_of): bilinear in space ×
+/// barycentric over views and lights on the colour planes (DFMF model 0: R, G, B; model 11: log Y,
+/// U/Y, V/Y; FMF: the rows' channels, logarithmic when its dynamic range is reduced), decoded to
+/// linear RGB after the interpolation. Equal to the file's decoded values at its sample directions
+/// and texel centres. The factorization is released (if nobody else holds it) before the
+/// evaluator's own copy of the factors is made, so that the peak is two copies of the factors, not
+/// three. A file with the cosine flag, which the factor model cannot hold, is opened as
+/// ubo2014::make_material (decoded RGB samples interpolated). Throws btf::Error naming `what`.
+std::unique_ptr<Material> ubo2014_material(
+    std::shared_ptr<const ubo2014::Factorization> factorization, const std::string& what);
+/// ubo2014::read(`path`) then ubo2014_material(); what btf::open_material does with a .btf file.
+std::unique_ptr<Material> open_ubo2014_material(const std::filesystem::path& path,
+                                                Progress& progress = Progress::none());
 
 /// The fmf package of model_of(`factorization`): its factors in half floats when the file holds
 /// half floats, else float32 (no rounding beyond the file's own); header parameters say where it

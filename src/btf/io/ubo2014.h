@@ -132,9 +132,11 @@ std::unique_ptr<BtfSource> make_source(std::shared_ptr<const Factorization> fact
                                        const std::filesystem::path& path,
                                        const std::vector<int>& views = {});
 
-/// The file as a Material: bilinear in space × barycentric over views and lights
-/// (AngularInterpolator + lookup6d), interpolating decoded linear RGB samples.
-std::unique_ptr<Material> open_material(const std::filesystem::path& path);
+/// A factorization as a Material that interpolates decoded linear RGB samples: bilinear in space
+/// × barycentric over views and lights (AngularInterpolator + lookup6d), cosine flag divided out
+/// per sample. Used for files with the cosine flag only: every other file is opened through the
+/// codecs (btf::open_material, codecs/dfmf_export.h: open_ubo2014_material) as the fmf evaluator
+/// of its own factors, which interpolates the colour planes, as the file's package does.
 std::unique_ptr<Material> make_material(std::shared_ptr<const Factorization> factorization);
 
 /// Writes `factorization` as `!DFMF08FC` (or `!DFMF08FCR` with its rotations when

@@ -1,5 +1,8 @@
-// The UBO2014 factorization as a Material: the one AngularInterpolator for views and lights and
-// lookup6d's bilinear × barycentric weighting, over samples decoded to linear RGB one by one.
+// A UBO2014 factorization as a Material that interpolates decoded RGB samples: the one
+// AngularInterpolator for views and lights and lookup6d's bilinear × barycentric weighting, over
+// samples decoded to linear RGB one by one (cosine flag divided out). Only files with the cosine
+// flag are opened this way (ubo2014.h, make_material); the others become the fmf evaluator of
+// their factors (codecs/dfmf_export.h).
 
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/btf_lookup.h"
@@ -43,10 +46,6 @@ class FactorizationMaterial final : public Material {
 
 std::unique_ptr<Material> make_material(std::shared_ptr<const Factorization> factorization) {
     return std::make_unique<FactorizationMaterial>(std::move(factorization));
-}
-
-std::unique_ptr<Material> open_material(const std::filesystem::path& path) {
-    return make_material(read(path));
 }
 
 }  // namespace btf::ubo2014

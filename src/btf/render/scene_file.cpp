@@ -22,8 +22,8 @@ using nlohmann::json;
 std::shared_ptr<const Material> open_material_file(const std::filesystem::path& path) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw Error(path.string() + ": no such file");
-    if (probe_package(path)) return open_material(path);
-    if (ubo2014::probe(path)) return ubo2014::open_material(path);
+    // A UBO2014 file: the material of its own factors (codecs/dfmf_export.h), as its package's.
+    if (probe_package(path) || ubo2014::probe(path)) return open_material(path);
     return open_sampled_material(path);  // raw data; errors name the file
 }
 
