@@ -55,13 +55,19 @@ compress fmf_raw --codec fmf --components 2 --zstd 0
 compress pca_views --codec pca-views --components 3
 compress lpca --codec lpca --components 3
 compress perceptual --codec perceptual --components 6
+compress perceptual_levels --codec perceptual --components 6 -p quality=0.3
+compress pca_views_groups --codec pca-views --components 2 -p views-per-group=2
 compress mlvq --codec mlvq -p n-theta-v=3 -p n-phi-v=4 -p n-alpha=3 -p n-beta=4
+compress mlvq_isotropic --codec mlvq -p n-theta-v=3 -p n-phi-v=1 -p n-alpha=3 -p n-beta=4
 put codec_fmf fmf.btfpkg "$tmp/fmf.btfpkg"
 put codec_fmf fmf_f32.btfpkg "$tmp/fmf_f32.btfpkg"
 put codec_fmf fmf_raw.btfpkg "$tmp/fmf_raw.btfpkg"
 put codec_pca_views pca_views.btfpkg "$tmp/pca_views.btfpkg"
 put codec_lpca lpca.btfpkg "$tmp/lpca.btfpkg"
 put codec_perceptual perceptual.btfpkg "$tmp/perceptual.btfpkg"
+put codec_perceptual perceptual_levels.btfpkg "$tmp/perceptual_levels.btfpkg"
+put codec_pca_views pca_views_groups.btfpkg "$tmp/pca_views_groups.btfpkg"
+put codec_mlvq mlvq_isotropic.btfpkg "$tmp/mlvq_isotropic.btfpkg"
 put codec_mlvq mlvq.btfpkg "$tmp/mlvq.btfpkg"
 for f in fmf fmf_raw pca_views lpca perceptual mlvq; do put package "$f.btfpkg" "$tmp/$f.btfpkg"; done
 

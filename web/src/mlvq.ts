@@ -266,7 +266,7 @@ function readFields(name: string, h: Json): MlvqInfo {
     nAlpha: integer(at(gj, "n_alpha", "grid"), "n_alpha", 2, MAX_AXIS),
     nBeta: integer(at(gj, "n_beta", "grid"), "n_beta", 2, MAX_AXIS),
     nThetaV: integer(at(gj, "n_theta_v", "grid"), "n_theta_v", 2, MAX_AXIS),
-    nPhiV: integer(at(gj, "n_phi_v", "grid"), "n_phi_v", 2, MAX_AXIS),
+    nPhiV: integer(at(gj, "n_phi_v", "grid"), "n_phi_v", 1, MAX_AXIS),
   };
   validateGrid(grid);
   const colour = string(h, "colour", "");

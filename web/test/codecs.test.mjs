@@ -76,6 +76,19 @@ test("each codec's settled frame matches btf render of the same scene within a m
     }
   }
   writeFileSync(path.join(OUT, "viewer-vs-cpp.json"), JSON.stringify(summary, null, 1));
+  // One picture of all codecs side by side (docs/viewer.md), each sphere its codec's package.
+  const ids = Object.values(CODEC_FIXTURES);
+  const objects = ids.map((id, i) => `sphere:${id}@${(i - (ids.length - 1) / 2) * 2.2},0,0`).join(";");
+  const { page, problems } = await openPage(browser, server.url, `objects=${objects}&camera=0,0.8,4.8&size=880x200&light=0.1,0.6,1&deterministic=1&hud=0`);
+  try {
+    await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
+    await render(page);
+    assert.deepEqual((await state(page)).objects.map((o) => o.visible), ids.map(() => true));
+    await page.locator("canvas").screenshot({ path: path.join(OUT, "codecs.png") });
+    assert.deepEqual(problems, []);
+  } finally {
+    await page.close();
+  }
   for (const [codec, m] of Object.entries(summary)) {
     assert.ok(m.de2000_mean <= 1, `${codec}: mean ΔE00 ${m.de2000_mean} between the viewer and btf render`);
     // Not an empty picture: the sphere covers a good part of the frame.

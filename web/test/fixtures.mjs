@@ -66,10 +66,14 @@ export const PACKAGES = {
   woven_perceptual: ["--codec", "perceptual", "--components", "10", "-p", "quality=0.6"],
   // perceptual: one level, row means, u8
   woven_perceptual_u8: ["--codec", "perceptual", "--components", "6", "-p", "mean=true", "--quantize", "u8"],
-  // mlvq: YCbCr colour (the default for an LDR source), P6 in 5 levels
+  // the third quantization of each factor codec (CPU reference only)
+  woven_pca_f32: ["--codec", "pca-views", "--components", "2", "-p", "views-per-group=27", "--quantize", "f32"],
+  woven_lpca_u8: ["--codec", "lpca", "--components", "2", "-p", "clusters=2", "-p", "log=true", "--quantize", "u8"],
+  woven_perceptual_f32: ["--codec", "perceptual", "--components", "6", "-p", "quality=0.5", "--quantize", "f32"],
+  // mlvq: LogLuv colour (the default for btf synth's HDR source), P6 in 4 levels
   woven_mlvq: ["--codec", "mlvq"],
-  // mlvq: LogLuv colour
-  woven_mlvq_logluv: ["--codec", "mlvq", "-p", "colour=logluv"],
+  // mlvq: YCbCr colour
+  woven_mlvq_ycbcr: ["--codec", "mlvq", "-p", "colour=ycbcr"],
 };
 
 export function makeFixtures() {

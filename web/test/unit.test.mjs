@@ -160,8 +160,15 @@ const dirVec = (thetaDeg, phiDeg) => {
 };
 
 function cliEval(file, uv, light, view) {
-  const out = execFileSync(fx.bin, ["-q", "eval", file, "--uv", uv.join(","), "--light", light.join(","), "--view", view.join(",")]).toString();
-  return out.trim().split(/\s+/).map(Number);
+  return cliEvalMany(file, [{ uv, light, view }])[0];
+}
+
+/** `btf eval --queries -` of many queries in one process: one RGB per query. */
+function cliEvalMany(file, queries) {
+  const input = queries.map((q) => `${q.uv.join(",")} ${q.light.join(",")} ${q.view.join(",")}`).join("\n");
+  const lines = execFileSync(fx.bin, ["-q", "eval", file, "--queries", "-"], { input }).toString().trim().split("\n");
+  assert.equal(lines.length, queries.length);
+  return lines.map((l) => l.trim().split(/\s+/).map(Number));
 }
 
 // A small fixed set of queries: texel centres, seams, between directions, below the outer ring.
@@ -185,16 +192,18 @@ function randomQueries(n, seed) {
 }
 
 test("the CPU evaluator matches `btf eval` for every factor codec and colour, log and quantization variant", () => {
-  const ids = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_pca_declog", "woven_lpca", "woven_lpca_dec", "woven_perceptual", "woven_perceptual_u8"];
+  const ids = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_pca_declog", "woven_lpca", "woven_lpca_dec", "woven_perceptual", "woven_perceptual_u8", "woven_pca_f32", "woven_lpca_u8", "woven_perceptual_f32"];
   ids.forEach((id, i) => {
     const { model, tables } = decode(fx.packages[id]);
-    for (const q of [...QUERIES, ...randomQueries(20, 17 + i)]) {
+    const queries = [...QUERIES, ...randomQueries(200, 17 + i)];
+    const values = cliEvalMany(fx.packages[id], queries);
+    queries.forEach((q, k) => {
       const wi = dirVec(...q.light), wo = dirVec(...q.view);
       const got = model.evalWeights(q.uv[0], q.uv[1], M.lookup(tables.views, ...wo), M.lookup(tables.lights, ...wi));
-      const want = cliEval(fx.packages[id], q.uv, q.light, q.view);
+      const want = values[k];
       for (let c = 0; c < 3; ++c)
         assert.ok(Math.abs(got[c] - want[c]) <= 2e-5 + 1e-4 * Math.abs(want[c]), `${id} ${JSON.stringify(q)}: ${got} vs ${want}`);
-    }
+    });
   });
 });
 

@@ -371,7 +371,7 @@ Codebooks read_codebooks(const Package& package) {
     b.grid.n_alpha = int(json_fields::integer_at(grid, "n_alpha", 2, MlvqGrid::kMaxAxis));
     b.grid.n_beta = int(json_fields::integer_at(grid, "n_beta", 2, MlvqGrid::kMaxAxis));
     b.grid.n_theta_v = int(json_fields::integer_at(grid, "n_theta_v", 2, MlvqGrid::kMaxAxis));
-    b.grid.n_phi_v = int(json_fields::integer_at(grid, "n_phi_v", 2, MlvqGrid::kMaxAxis));
+    b.grid.n_phi_v = int(json_fields::integer_at(grid, "n_phi_v", 1, MlvqGrid::kMaxAxis));
     b.grid.validate();
     b.colour = parse_colour_model(h.at("colour").get<std::string>());
     const nlohmann::json& sizes = h.at("codebooks");
