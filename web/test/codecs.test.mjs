@@ -157,7 +157,7 @@ test("mlvq: P6 streams coarse to fine, a first picture with the code-books and t
   const codebooks = entry.sections.find((s) => s.name === "codebooks");
   // Hold the body after the code-books, then at the end of every level but the last.
   server.hold(id, [codebooks.offset + codebooks.size, ...levels.slice(0, -1).map((s) => s.offset + s.size)]);
-  const { page, problems } = await openPage(browser, server.url, `material=${id}&size=128x128&deterministic=1&mip=0&hud=0`);
+  const { page, problems } = await openPage(browser, server.url, `material=${id}&size=128x128&deterministic=1&mip=0`);
   try {
     // The code-books alone are no picture (open_all needs the coarsest P6 level).
     await page.waitForFunction(() => window.btfViewer.state.materials[0]?.sections === 1, null, { timeout: PATIENCE_MS });
@@ -172,6 +172,9 @@ test("mlvq: P6 streams coarse to fine, a first picture with the code-books and t
       assert.equal(s.materials[0].bytes, levels[l].offset + levels[l].size, "frame drawn from exactly the bytes up to this level");
       assert.ok(s.materials[0].ready && s.objects[0].visible);
       await render(page);
+      // The HUD names the codec and counts P6 levels.
+      const hud = await page.locator("#hud").innerText();
+      assert.match(hud, new RegExp(`leather_mlvq \\(mlvq\\): [\\d.]+ KiB / [\\d.]+ KiB · ${l + 1}/${levels.length} P6 levels · http · ${l + 1 < levels.length ? "refining" : "(refining|complete)"}`), hud);
       frames.push(await pixels(page));
       writePpm(path.join(OUT, `mlvq-level-${levels.length - 1 - l}.ppm`), frames[frames.length - 1]);
       await page.locator("canvas").screenshot({ path: path.join(OUT, `mlvq-level-${levels.length - 1 - l}.png`) });
