@@ -401,6 +401,19 @@ export class FactorModel {
   }
 
   /**
+   * Decodes any model section (means, clusters, angular, a component) into this model; returns the
+   * component's block and k, or null for the other sections. Sections of no concern to the model
+   * (tables, a BSVTF's) are left to the caller.
+   */
+  addSection(name: string, data: Uint8Array): { block: number; k: number } | null {
+    if (name === "means") this.setMeans(data);
+    else if (name === "clusters") this.setClusters(data);
+    else if (name === "angular") this.setAngular(data);
+    else return this.addComponent(name, data);
+    return null;
+  }
+
+  /**
    * Decodes a component section into this model; returns the block and k. Throws for sections
    * out of order, undeclared or of the wrong size (the C++ reader's checks), and for sections the
    * model cannot place yet (clusters or angular up-sampling missing).

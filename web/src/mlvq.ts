@@ -48,7 +48,7 @@
 
 // UnsupportedMaterial is the factor codecs' class (fmf.ts, since renamed factor.ts), so that the
 // viewer's `instanceof` test catches both.
-import { UnsupportedMaterial } from "./factor";
+import { UnsupportedMaterial, wrapLerp } from "./factor";
 import { floatToHalf, halfToFloat } from "./half";
 
 export { UnsupportedMaterial };
@@ -631,16 +631,6 @@ function decodeBooks(info: MlvqInfo, b: Codebooks): Decoded {
     if (info.colour === "ycbcr") albedoTexture.set([sy, s1, s2, 0], 4 * e);
   }
   return { views, viewScale, samples, chromaLo: [q0.lo, q1.lo], chromaStep: [q0.step, q1.step], albedo, albedoTexture };
-}
-
-/** wrap_lerp of btf_lookup.h: texel centres at (i + 0.5) / size, wrapping. */
-function wrapLerp(c: number, size: number): { i0: number; i1: number; t: number } {
-  let x = c * size - 0.5;
-  if (!Number.isFinite(x)) x = -0.5;
-  if (!(x >= 0 && x < size)) x -= size * Math.floor(x / size);
-  if (!(x >= 0 && x < size)) x = 0;
-  const i0 = Math.trunc(x);
-  return { i0, i1: i0 + 1 === size ? 0 : i0 + 1, t: Math.fround(x - i0) };
 }
 
 // ---- the [α, β] parametrization (parametrization.cpp) -----------------------------------------

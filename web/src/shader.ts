@@ -45,7 +45,7 @@ void main() {
 }
 `;
 
-const wrapLerpFunction = /* glsl */ `
+export const wrapLerpFunction = /* glsl */ `
 // wrap_lerp of btf_lookup.h: the two texels and the weight of the second.
 void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
   float n = float(size);

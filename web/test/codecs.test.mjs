@@ -49,6 +49,18 @@ function sceneOf(id) {
   };
 }
 
+/**
+ * Frames of successive stages get nearer to the last one (mean absolute difference in 8-bit
+ * levels, written to OUT/<name>-progressive.json; 0.05 levels of slack for rounding), and the
+ * first differs visibly from it.
+ */
+function assertRefines(frames, name) {
+  const d = frames.map((f) => meanDiff(f, frames[frames.length - 1]));
+  writeFileSync(path.join(OUT, `${name}-progressive.json`), JSON.stringify({ meanAbsDiffToFinal: d }, null, 1));
+  for (let k = 1; k < d.length; ++k) assert.ok(d[k] <= d[k - 1] + 0.05, `${name}: difference to the final frame grew: ${d.map((x) => x.toFixed(3))}`);
+  assert.ok(d[0] > 0.2, `${name}: no visible refinement: ${d.map((x) => x.toFixed(3))}`);
+}
+
 test("each codec's settled frame matches btf render of the same scene within a mean ΔE00 of 1", async () => {
   const summary = {};
   for (const [codec, id] of Object.entries(CODEC_FIXTURES)) {
@@ -133,10 +145,7 @@ test("pca-views: a first picture once every view group's first component is in, 
       await page.locator("canvas").screenshot({ path: path.join(OUT, `pca-views-round-${r + 1}.png`) });
     }
     await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
-    const d = frames.map((f) => meanDiff(f, frames[frames.length - 1]));
-    writeFileSync(path.join(OUT, "pca-views-progressive.json"), JSON.stringify({ meanAbsDiffToFinal: d }, null, 1));
-    for (let k = 1; k < d.length; ++k) assert.ok(d[k] <= d[k - 1] + 0.05, `difference to the final frame grew: ${d.map((x) => x.toFixed(3))}`);
-    assert.ok(d[0] > 0.2, `no visible refinement: ${d.map((x) => x.toFixed(3))}`);
+    assertRefines(frames, "pca-views");
     assert.deepEqual(problems, []);
   } finally {
     server.releaseAll(id);
@@ -180,10 +189,7 @@ test("mlvq: P6 streams coarse to fine, a first picture with the code-books and t
       await page.locator("canvas").screenshot({ path: path.join(OUT, `mlvq-level-${levels.length - 1 - l}.png`) });
     }
     await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
-    const d = frames.map((f) => meanDiff(f, frames[frames.length - 1]));
-    writeFileSync(path.join(OUT, "mlvq-progressive.json"), JSON.stringify({ meanAbsDiffToFinal: d }, null, 1));
-    for (let k = 1; k < d.length; ++k) assert.ok(d[k] <= d[k - 1] + 0.05, `difference to the final frame grew: ${d.map((x) => x.toFixed(3))}`);
-    assert.ok(d[0] > 0.2, `no visible refinement: ${d.map((x) => x.toFixed(3))}`);
+    assertRefines(frames, "mlvq");
     assert.deepEqual(problems, []);
   } finally {
     server.releaseAll(id);

@@ -5,7 +5,8 @@
 import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, readFileSync, rmSync, writeFileSync, copyFileSync } from "node:fs";
 import path from "node:path";
-import { fileURLToPath } from "node:url";
+import { fileURLToPath, pathToFileURL } from "node:url";
+import { build } from "esbuild";
 
 export const WEB = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "..");
 export const REPO = path.resolve(WEB, "..");
@@ -142,6 +143,23 @@ export function makeFixtures() {
   damage("woven_pca_broken", "woven_pca", "b1.k0");
   damage("woven_mlvq_broken", "woven_mlvq", "P6.1");
   return { bin, h5, packages: out };
+}
+
+/**
+ * The viewer's modules `names` (web/src/<name>.ts) bundled for node into `out` and imported: what
+ * the unit tests call.
+ */
+export async function bundleModules(names, out) {
+  mkdirSync(path.dirname(out), { recursive: true });
+  await build({
+    stdin: { contents: names.map((m) => `export * from "./src/${m}";`).join("\n"), resolveDir: WEB, loader: "ts" },
+    bundle: true,
+    format: "esm",
+    platform: "node",
+    outfile: out,
+    logLevel: "warning",
+  });
+  return import(pathToFileURL(out).href + `?t=${Date.now()}`);
 }
 
 /** The material list entry of a package (docs/protocol.md). */

@@ -10,9 +10,7 @@ import assert from "node:assert/strict";
 import { execFile, execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { pathToFileURL } from "node:url";
-import { build } from "esbuild";
-import { ARTIFACTS, WEB, btfBinary, run } from "./fixtures.mjs";
+import { ARTIFACTS, btfBinary, bundleModules, run } from "./fixtures.mjs";
 import { launchBrowser } from "./browser.mjs";
 
 const DIR = path.join(ARTIFACTS, "mlvq");
@@ -63,15 +61,7 @@ before(async () => {
   bin = btfBinary();
   makeMlvqFixtures();
   const out = path.join(DIR, "modules.mjs");
-  await build({
-    stdin: { contents: ["half", "package", "mlvq"].map((m) => `export * from "./src/${m}";`).join("\n"), resolveDir: WEB, loader: "ts" },
-    bundle: true,
-    format: "esm",
-    platform: "node",
-    outfile: out,
-    logLevel: "warning",
-  });
-  M = await import(pathToFileURL(out).href + `?t=${Date.now()}`);
+  M = await bundleModules(["half", "package", "mlvq", "shader"], out);
   xxh64 = await M.loadChecksum();
 });
 
@@ -505,21 +495,12 @@ test("textures and uniforms: shapes within WebGL2 limits, data sizes, and the me
 // ---- the shader in WebGL2 -------------------------------------------------------------------------
 
 // The shared fragment shader's definitions that mlvqFragment relies on (shader.ts).
-const PRELUDE = `#version 300 es
+const prelude = () => `#version 300 es
 precision highp float;
 precision highp int;
 #define MAX_LIGHTS 4
 #define PI 3.14159265358979
-void wrapLerp(float c, int size, out int i0, out int i1, out float t) {
-  float n = float(size);
-  float x = c * n - 0.5;
-  if (isnan(x) || isinf(x)) x = -0.5;
-  if (!(x >= 0.0 && x < n)) x -= n * floor(x / n);
-  if (!(x >= 0.0 && x < n)) x = 0.0;
-  i0 = int(x);
-  t = x - float(i0);
-  i1 = i0 + 1 == size ? 0 : i0 + 1;
-}
+${M.wrapLerpFunction}
 ivec2 tableTexel(int i) { return ivec2(i % 1024, i / 1024); }
 `;
 
@@ -662,7 +643,7 @@ test("mlvqFragment compiles in WebGL2 and decodes like the CPU reference (Chromi
       expected.push(rows);
     }
     const textures = decoder.textures().map((x) => ({ ...x, data: Array.from(x.data) }));
-    const source = PRELUDE + M.mlvqFragment + MAIN;
+    const source = prelude() + M.mlvqFragment + MAIN;
     const result = await page.evaluate(renderInPage, { source, textures, uniforms: decoder.uniforms(), queries: data, count: qs.length });
     assert.ok(!result.error, result.error);
     let worstEval = 0, worstAlbedo = 0;
@@ -701,7 +682,7 @@ void main() {
 }
 `;
   const result = await page.evaluate(renderInPage, {
-    source: PRELUDE + M.mlvqFragment + addressing,
+    source: prelude() + M.mlvqFragment + addressing,
     textures: [entries],
     uniforms: { uMlvqRows: [1, 1, 3, 1] },
     queries: new Array(6 * count * 4).fill(0),

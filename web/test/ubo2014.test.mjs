@@ -11,9 +11,7 @@ import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { existsSync, mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { pathToFileURL } from "node:url";
-import { build } from "esbuild";
-import { ARTIFACTS, WEB, btfBinary, run } from "./fixtures.mjs";
+import { ARTIFACTS, btfBinary, bundleModules, run } from "./fixtures.mjs";
 
 const DIR = path.join(ARTIFACTS, "ubo2014");
 // The two files: colour model 11 in half floats, colour model 0 (per-channel RGB) in float32.
@@ -30,19 +28,7 @@ const files = {}; // id → { btf, pkg }
 before(async () => {
   mkdirSync(DIR, { recursive: true });
   const out = path.join(DIR, "modules.mjs");
-  await build({
-    stdin: {
-      contents: ["half", "package", "interp", "factor"].map((m) => `export * from "./src/${m}";`).join("\n"),
-      resolveDir: WEB,
-      loader: "ts",
-    },
-    bundle: true,
-    format: "esm",
-    platform: "node",
-    outfile: out,
-    logLevel: "warning",
-  });
-  M = await import(pathToFileURL(out).href + `?t=${Date.now()}`);
+  M = await bundleModules(["half", "package", "interp", "factor"], out);
   xxh64 = await M.loadChecksum();
 
   // 16² texels × 151 × 151 directions: a few seconds to make, kept while present.
@@ -78,8 +64,7 @@ function decode(file) {
   let tables = null;
   for (const s of sections) {
     if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
-    else if (s.entry.name === "means") model.setMeans(s.data);
-    else model.addComponent(s.entry.name, s.data);
+    else model.addSection(s.entry.name, s.data);
   }
   assert.ok(tables, `${file}: a tables section`);
   return { info, model, tables, header: header.json };

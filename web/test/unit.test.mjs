@@ -7,9 +7,7 @@ import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { pathToFileURL } from "node:url";
-import { build } from "esbuild";
-import { ARTIFACTS, FIXTURES, WEB, makeFixtures } from "./fixtures.mjs";
+import { ARTIFACTS, FIXTURES, WEB, bundleModules, makeFixtures } from "./fixtures.mjs";
 
 let M; // the bundled modules
 let xxh64; // the package checksum (xxhash-wasm, loaded once)
@@ -18,20 +16,7 @@ let fx; // fixtures
 before(async () => {
   fx = makeFixtures();
   const out = path.join(ARTIFACTS, "unit", "modules.mjs");
-  mkdirSync(path.dirname(out), { recursive: true });
-  await build({
-    stdin: {
-      contents: ["half", "package", "interp", "factor", "meshes", "scene", "reference", "cache", "bsvtf"].map((m) => `export * from "./src/${m}";`).join("\n"),
-      resolveDir: WEB,
-      loader: "ts",
-    },
-    bundle: true,
-    format: "esm",
-    platform: "node",
-    outfile: out,
-    logLevel: "warning",
-  });
-  M = await import(pathToFileURL(out).href + `?t=${Date.now()}`);
+  M = await bundleModules(["half", "package", "interp", "factor", "meshes", "scene", "reference", "cache", "bsvtf"], out);
   xxh64 = await M.loadChecksum();
 });
 
@@ -146,10 +131,7 @@ function decode(file) {
   let tables = null;
   for (const s of sections) {
     if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
-    else if (s.entry.name === "means") model.setMeans(s.data);
-    else if (s.entry.name === "clusters") model.setClusters(s.data);
-    else if (s.entry.name === "angular") model.setAngular(s.data);
-    else model.addComponent(s.entry.name, s.data);
+    else model.addSection(s.entry.name, s.data);
   }
   return { info, model, tables, bytes, sections };
 }
