@@ -3,7 +3,7 @@
 // with the documented cmake/ninja commands when it is missing.
 
 import { execFileSync } from "node:child_process";
-import { existsSync, mkdirSync, readFileSync, rmSync, writeFileSync, copyFileSync } from "node:fs";
+import { existsSync, mkdirSync, readFileSync, renameSync, rmSync, writeFileSync, copyFileSync } from "node:fs";
 import path from "node:path";
 import { fileURLToPath, pathToFileURL } from "node:url";
 import { build } from "esbuild";
@@ -134,7 +134,11 @@ export function makeFixtures() {
     const s = header.sections.find((x) => x.name === section);
     const damaged = Buffer.from(bytes);
     damaged[24 + h + s.offset + Math.floor(s.size / 2)] ^= 0x5a;
-    writeFileSync(file, damaged);
+    // Written only when it changed, and whole (a rename): test files running at once read it.
+    if (!existsSync(file) || !readFileSync(file).equals(damaged)) {
+      writeFileSync(`${file}.${process.pid}.tmp`, damaged);
+      renameSync(`${file}.${process.pid}.tmp`, file);
+    }
     out[id] = file;
   };
   damage("woven_broken", "woven_fabric", "b0.k2");
@@ -210,3 +214,7 @@ export function makeSite(name, packages, ids, { streams = false, list = true } =
   }
   return site;
 }
+
+// `node test/fixtures.mjs`: makes the fixtures once, before test files that share them run at
+// once (CMakeLists.txt: the WebViewer tests).
+if (process.argv[1] && path.resolve(process.argv[1]) === fileURLToPath(import.meta.url)) makeFixtures();
