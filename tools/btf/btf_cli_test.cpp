@@ -2,9 +2,11 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
 #include <array>
 #include <cmath>
@@ -499,6 +501,42 @@ TEST_F(BtfCli, ConvertsAUbo2014FileToAPackageWithoutRefactorizing) {
         << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     EXPECT_FALSE(fs::exists(path("x.btfpkg")));
+}
+
+TEST_F(BtfCli, BenchMeasuresEvalAndSampleOfAnyMaterial) {
+    // Counts and fields, not speeds: a busy machine may be slow.
+    const std::string h5 = path("bench.h5"), pkg = path("bench.btfpkg"), btf = path("bench.btf");
+    ASSERT_EQ(run("synth --preset leather --size 8 --sampling " +
+                  write_small_directions(path("bdirs.txt")) + " -o " + h5)
+                  .code,
+              0);
+    ASSERT_EQ(run("compress " + h5 + " --codec fmf --components 3 --no-error -o " + pkg).code, 0);
+    ASSERT_EQ(run("convert " + h5 + " " + btf + " --components 3").code, 0);
+    for (const std::string what : {"eval", "sample"})
+        for (const std::string& file : {pkg, btf})
+            for (const std::string mode : {"", " --coherent"}) {
+                SCOPED_TRACE(what + " " + file + mode);
+                const CliResult r = run("-q bench " + what + " " + file +
+                                        " --queries 5000 --repeat 2 --threads 2 --json" + mode);
+                ASSERT_EQ(r.code, 0) << r.output;
+                const nlohmann::json j = nlohmann::json::parse(r.output);
+                EXPECT_EQ(j.at("queries"), 5000);
+                EXPECT_EQ(j.at("threads"), 2);
+                EXPECT_EQ(j.at("repeat"), 2);
+                EXPECT_EQ(j.at("mode"), mode.empty() ? "random" : "coherent");
+                EXPECT_GT(j.at(what == "eval" ? "evals_per_s" : "samples_per_s").get<double>(), 0);
+                EXPECT_GT(j.at("checksum").get<double>(), 0);
+            }
+    const CliResult line = run("-q bench eval " + pkg + " --queries 1000 --repeat 1");
+    ASSERT_EQ(line.code, 0) << line.output;
+    EXPECT_TRUE(std::regex_search(
+        line.output,
+        std::regex(
+            R"(bench\.btfpkg: eval [0-9.]+ M/s \(random, 1 thread, 1000 queries, best of 1\)\n$)")))
+        << line.output;
+    const CliResult missing = run("bench eval " + path("none.btfpkg"));
+    EXPECT_NE(missing.code, 0);
+    EXPECT_THAT(missing.output, testing::HasSubstr("none.btfpkg: no such file"));
 }
 
 TEST_F(BtfCli, EvalOfAUbo2014FileAndOfItsPackagePrintTheSameValues) {

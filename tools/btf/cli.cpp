@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <functional>
 
+#include "btf/codecs/codec.h"
 #include "btf/codecs/dfmf_export.h"
 #include "btf/codecs/material_source.h"
 #include "btf/io/h5.h"
@@ -160,6 +161,14 @@ void add_open_options(CLI::App& command, OpenOptions& options, std::string& view
 OpenOptions finish_open_options(OpenOptions options, const std::string& views_text) {
     if (!views_text.empty()) options.views = parse_indices(views_text, "--views");
     return options;
+}
+
+std::unique_ptr<Material> open_material_file(const std::string& path) {
+    // A UBO2014 file: the material of its own factors, the same as its package's.
+    if (probe_package(path) || ubo2014::probe(path))
+        return open_material(std::filesystem::path(path));
+    if (!std::filesystem::exists(path)) fail("{}: no such file", path);
+    fail("{}: not a btfkit package or UBO2014 .btf file", path);
 }
 
 std::unique_ptr<BtfSource> open_input(const std::string& path, const OpenOptions& options,

@@ -51,6 +51,11 @@ OpenOptions finish_open_options(OpenOptions options, const std::string& views_te
 std::unique_ptr<BtfSource> open_input(const std::string& path, const OpenOptions& options,
                                       const std::string& views_text);
 
+/// A compressed material of any kind btfkit evaluates: a btfkit package, a BSVTF file or a UBO2014
+/// .btf file (btf::open_material). Throws btf::Error naming the file when it is missing or none
+/// of these.
+std::unique_ptr<Material> open_material_file(const std::string& path);
+
 /// What an output name asks for, by its extension.
 enum class OutputKind {
     kHdf5,     ///< .h5 / .hdf5
@@ -115,6 +120,7 @@ Command register_codecs(CLI::App& app, GlobalOptions& global);
 Command register_compress(CLI::App& app, GlobalOptions& global);
 Command register_decompress(CLI::App& app, GlobalOptions& global);
 Command register_eval(CLI::App& app, GlobalOptions& global);
+Command register_bench(CLI::App& app, GlobalOptions& global);
 Command register_quality(CLI::App& app, GlobalOptions& global);
 Command register_report(CLI::App& app, GlobalOptions& global);
 Command register_render(CLI::App& app, GlobalOptions& global);

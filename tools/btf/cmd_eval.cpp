@@ -76,14 +76,7 @@ Command register_eval(CLI::App& app, GlobalOptions&) {
                     query = {parse_uv(args->uv, "--uv"),
                              parse_direction(args->light, "--light").vector(),
                              parse_direction(args->view, "--view").vector()};
-                std::unique_ptr<Material> material;
-                // A UBO2014 file: the material of its own factors, the same as its package's.
-                if (probe_package(args->path) || ubo2014::probe(args->path))
-                    material = open_material(std::filesystem::path(args->path));
-                else if (!std::filesystem::exists(args->path))
-                    fail("{}: no such file", args->path);
-                else
-                    fail("{}: not a btfkit package or UBO2014 .btf file", args->path);
+                const std::unique_ptr<Material> material = open_material_file(args->path);
                 if (args->queries == "-") {
                     eval_queries(*material, std::cin, "stdin");
                 } else if (!args->queries.empty()) {

@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
         register_image_diff(app, global), register_bsvtf(app, global),
         register_bsvtf_sim(app, global),  register_serve(app, global),
         register_bundle(app, global),     register_codecs(app, global),
-        register_formats(app, global),
+        register_formats(app, global),    register_bench(app, global),
     };
 
     try {

@@ -221,7 +221,7 @@ test("every codec, colour variants (UBO2014 model 11 too), log, quantizations, t
     { name: "cylinder-uv", query: "material=woven_fabric&object=cylinder&uvscale=2,1&uvrot=30&lightpos=2,2,3&intensity=40&camera=0,0.5,5" },
   ];
   for (const c of cases) {
-    const { page, problems } = await openPage(`${c.query}&size=200x160&deterministic=1&mip=0&hud=0`);
+    const { page, problems } = await openPage(`${c.query}&size=160x128&deterministic=1&mip=0&hud=0`);
     try {
       await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });
       await render(page);
