@@ -17,7 +17,7 @@
 // without log; factors quantized f32, f16 or u8.
 
 import { halfToFloat } from "./half";
-import type { Weights } from "./interp";
+import { readTablesSection, type InterpTables, type Weights } from "./interp";
 
 export type ColourBasis = "rgb" | "decorrelated" | "per-channel" | "model11" | "lab";
 export type Quantization = "f32" | "f16" | "u8";
@@ -738,4 +738,23 @@ export function inverseColour(info: FactorInfo, p: [number, number, number]): [n
     v = [DA * p[0] + DB * p[1] + DC * p[2], DA * p[0] - DB * p[1] + DC * p[2], DA * p[0] - 2 * DC * p[2]];
   if (info.log) v = [Math.exp(v[0]) - info.logEps, Math.exp(v[1]) - info.logEps, Math.exp(v[2]) - info.logEps];
   return v;
+}
+
+/**
+ * A factorization package's model and interpolation tables from its decoded sections (in package
+ * order): what the CPU reference evaluates. Throws as the model's decoders do.
+ */
+export function decodeFactorSections(
+  name: string,
+  json: Record<string, unknown>,
+  sections: { entry: { name: string }; data: Uint8Array }[],
+): { info: FactorInfo; model: FactorModel; tables: { views: InterpTables; lights: InterpTables } | null } {
+  const info = readFactorHeader(name, json);
+  const model = new FactorModel(info);
+  let tables: { views: InterpTables; lights: InterpTables } | null = null;
+  for (const s of sections) {
+    if (s.entry.name === "tables") tables = readTablesSection(s.data, info.nV, info.nL);
+    else model.addSection(s.entry.name, s.data);
+  }
+  return { info, model, tables };
 }

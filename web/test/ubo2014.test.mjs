@@ -59,13 +59,7 @@ function decode(file) {
     at += n;
   }
   assert.ok(stream.end(), `${file}: the whole package arrived`);
-  const info = M.readFactorHeader(path.basename(file), header.json);
-  const model = new M.FactorModel(info);
-  let tables = null;
-  for (const s of sections) {
-    if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
-    else model.addSection(s.entry.name, s.data);
-  }
+  const { info, model, tables } = M.decodeFactorSections(path.basename(file), header.json, sections);
   assert.ok(tables, `${file}: a tables section`);
   return { info, model, tables, header: header.json };
 }

@@ -126,13 +126,7 @@ test("the package reader accepts clean prefixes and reports damage like the C++ 
 function decode(file) {
   const bytes = bytesOf(file);
   const { header, sections } = readAll(bytes);
-  const info = M.readFactorHeader(path.basename(file), header.json);
-  const model = new M.FactorModel(info);
-  let tables = null;
-  for (const s of sections) {
-    if (s.entry.name === "tables") tables = M.readTablesSection(s.data, info.nV, info.nL);
-    else model.addSection(s.entry.name, s.data);
-  }
+  const { info, model, tables } = M.decodeFactorSections(path.basename(file), header.json, sections);
   return { info, model, tables, bytes, sections };
 }
 
