@@ -21,7 +21,7 @@
 #include <thread>
 #include <vector>
 
-#include "btf/core/math.h"
+#include "btf/core/hemisphere.h"
 #include "btf/util/error.h"
 #include "cli.h"
 
@@ -31,11 +31,11 @@ namespace {
 
 constexpr size_t kBatch = 4096;
 
-// A direction uniform over the upper hemisphere (z = cos θ uniform in [0, 1)).
+// A direction uniform over the upper hemisphere (the area-preserving square map).
 Vec3 hemisphere(std::mt19937_64& rng) {
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    const double z = u(rng), phi = 2 * kPi * u(rng), r = std::sqrt(std::max(0.0, 1 - z * z));
-    return {r * std::cos(phi), r * std::sin(phi), z};
+    const double a = u(rng), b = u(rng);
+    return square_to_hemisphere({a, b});
 }
 
 std::vector<Query> make_queries(size_t n, bool coherent) {
