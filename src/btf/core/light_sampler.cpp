@@ -235,8 +235,7 @@ double LightSampler::blend_pdf(const Blend& b, const Vec3& wi) const {
     return p / b.total * (double(R) * R) / (2 * kPi);
 }
 
-LightSample LightSampler::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
-    const Blend b = blend(uv, wo);
+LightSample LightSampler::draw(const Blend& b, double xi1, double xi2) const {
     const int R = m_options.resolution;
     // The blended marginal CDF F(r) = Σ_k w_k M_k(r), from 0 to Σ_k w_k.
     const auto marginal = [&](int r) {
@@ -262,9 +261,34 @@ LightSample LightSampler::sample(const Uv& uv, const Vec3& wo, double xi1, doubl
     LightSample s;
     s.wi = square_to_hemisphere({(col.index + col.offset) / R, (row.index + row.offset) / R});
     s.pdf = blend_pdf(b, s.wi);
+    return s;
+}
+
+LightSample LightSampler::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+    LightSample s = draw(blend(uv, wo), xi1, xi2);
     s.value = m_material.eval(uv, s.wi, wo);
     if (s.pdf > 0) s.weight = s.value * static_cast<float>(1 / s.pdf);
     return s;
+}
+
+LightSampler::Blend LightSampler::one_view(int x, int y, int view) const {
+    check(x >= 0 && y >= 0 && x < m_material.width() && y < m_material.height() && view >= 0 &&
+              view < m_views,
+          "light sampler: texel ({}, {}) or view {} is outside the material", x, y, view);
+    Blend b;
+    b.table[0] = table((y / m_tile) * m_tiles_x + x / m_tile, view);
+    b.weight[0] = b.total = 1;
+    b.count = 1;
+    return b;
+}
+
+LightSample LightSampler::sample_view(int x, int y, int view, double xi1, double xi2) const {
+    return draw(one_view(x, y, view), xi1, xi2);
+}
+
+double LightSampler::pdf_view(int x, int y, int view, const Vec3& wi) const {
+    if (!(wi.z >= 0)) return 0;
+    return blend_pdf(one_view(x, y, view), wi);
 }
 
 double LightSampler::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {

@@ -120,6 +120,12 @@ class LightSampler {
     LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const;
     /// The density of sample() at `wi` (see Material::pdf()). Thread-safe.
     double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const;
+    /// A direction drawn from the table of texel (x, y)'s tile and sampled view `view` alone (no
+    /// blend over views: the stochastic filter's selected view), and its pdf; value and weight
+    /// are left zero for the caller. Throws btf::Error for a texel or view outside the material.
+    LightSample sample_view(int x, int y, int view, double xi1, double xi2) const;
+    /// The density sample_view() draws `wi` with.
+    double pdf_view(int x, int y, int view, const Vec3& wi) const;
 
     /// Tile side in texels, after fitting the memory budget.
     int tile_size() const { return m_tile; }
@@ -134,6 +140,8 @@ class LightSampler {
   private:
     struct Blend;
     Blend blend(const Uv& uv, const Vec3& wo) const;
+    Blend one_view(int x, int y, int view) const;
+    LightSample draw(const Blend& b, double xi1, double xi2) const;
     const float* table(int tile, int view) const;
     const float* build(int tile, int view) const;
     double blend_pdf(const Blend& b, const Vec3& wi) const;

@@ -1,5 +1,9 @@
 #include "btf/core/material.h"
 
+#include <cmath>
+
+#include "btf/core/angular_interpolator.h"
+#include "btf/core/btf_lookup.h"
 #include "btf/core/light_sampler.h"
 #include "btf/util/error.h"
 
@@ -28,7 +32,42 @@ const LightSampler& LazyLightSampler::get(const Material& material) const {
     return *s;
 }
 
+struct Interpolators {
+    AngularInterpolator views, lights;
+    explicit Interpolators(const Sampling& s) : views(s.views), lights(s.lights) {}
+};
+
+LazyInterpolators& LazyInterpolators::operator=(const LazyInterpolators&) {
+    delete m_value.exchange(nullptr, std::memory_order_acq_rel);
+    return *this;
+}
+
+LazyInterpolators::~LazyInterpolators() {
+    delete m_value.load(std::memory_order_acquire);
+}
+
+const Interpolators& LazyInterpolators::get(const Material& material) const {
+    if (const Interpolators* p = m_value.load(std::memory_order_acquire)) return *p;
+    std::lock_guard lock(m_mutex);
+    const Interpolators* p = m_value.load(std::memory_order_relaxed);
+    if (!p) {
+        p = new Interpolators(material.sampling());
+        m_value.store(p, std::memory_order_release);
+    }
+    return *p;
+}
+
 }  // namespace detail
+
+const char* to_string(Filter filter) {
+    return filter == Filter::kStochastic ? "stochastic" : "deterministic";
+}
+
+Filter parse_filter(const std::string& text, const std::string& what) {
+    if (text == "deterministic") return Filter::kDeterministic;
+    if (text == "stochastic") return Filter::kStochastic;
+    fail("{}: '{}' is not a filter (deterministic or stochastic)", what, text);
+}
 
 LightSample Material::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
     return generic_sampler().sample(uv, wo, xi1, xi2);
@@ -48,6 +87,103 @@ double Material::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
 
 Rgb Material::albedo(const Uv& uv, const Vec3& wo) const {
     return quadrature_albedo(*this, uv, wo);
+}
+
+}  // namespace btf
+
+namespace btf {
+
+const AngularInterpolator& Material::view_interpolator() const {
+    return m_interpolators.get(*this).views;
+}
+
+const AngularInterpolator& Material::light_interpolator() const {
+    return m_interpolators.get(*this).lights;
+}
+
+Selection Material::select(const Uv& uv, const Vec3& wo, double u) const {
+    const WrapLerp lx = wrap_lerp(uv.u, width()), ly = wrap_lerp(uv.v, height());
+    Selection s;
+    s.u = u;
+    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
+    s.x = pick(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
+    s.y = pick(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
+    const AngularWeights views = view_interpolator().weights(wo);
+    s.view = views.index[size_t(pick(views.weight.data(), views.count, s.u))];
+    return s;
+}
+
+Rgb Material::eval_selected(const Selection& s, const Uv&, const Vec3&, const Vec3& wi) const {
+    const AngularWeights lights = light_interpolator().weights(wi);
+    double u = s.u;
+    return eval_sample(s.x, s.y, s.view,
+                       lights.index[size_t(pick(lights.weight.data(), lights.count, u))]);
+}
+
+LightSample Material::sample_selected(const Selection& s, const Uv& uv, const Vec3& wo, double xi1,
+                                      double xi2) const {
+    LightSample r = generic_sampler().sample_view(s.x, s.y, s.view, xi1, xi2);
+    r.value = eval_selected(s, uv, wo, r.wi);
+    if (r.pdf > 0) r.weight = r.value * static_cast<float>(1 / r.pdf);
+    return r;
+}
+
+double Material::pdf_selected(const Selection& s, const Uv&, const Vec3&, const Vec3& wi) const {
+    return generic_sampler().pdf_view(s.x, s.y, s.view, wi);
+}
+
+void Material::eval_stochastic_batch(std::span<const StochasticQuery> queries,
+                                     std::span<Rgb> out) const {
+    if (queries.size() != out.size())
+        fail("eval_stochastic_batch: {} queries but {} outputs", queries.size(), out.size());
+    for (size_t i = 0; i < queries.size(); ++i) {
+        const StochasticQuery& q = queries[i];
+        out[i] = ShadingPoint(*this, q.uv, q.wo, Filter::kStochastic, q.u).eval(q.wi);
+    }
+}
+
+void Material::sample_stochastic_batch(std::span<const StochasticSampleQuery> queries,
+                                       std::span<LightSample> out) const {
+    if (queries.size() != out.size())
+        fail("sample_stochastic_batch: {} queries but {} outputs", queries.size(), out.size());
+    for (size_t i = 0; i < queries.size(); ++i) {
+        const StochasticSampleQuery& q = queries[i];
+        out[i] = ShadingPoint(*this, q.uv, q.wo, Filter::kStochastic, q.u).sample(q.xi1, q.xi2);
+    }
+}
+
+// ---- ShadingPoint -----------------------------------------------------------------------------
+
+ShadingPoint::ShadingPoint(const Material& material, const Uv& uv, const Vec3& wo, Filter filter,
+                           double u)
+    : m_material(&material), m_uv(uv), m_wo(wo), m_filter(filter) {
+    if (filter == Filter::kStochastic) {
+        if (!(u >= 0)) u = 0;  // NaN too
+        u = std::min(u, 0x1.fffffffffffffp-1);
+        m_selection = material.select(uv, wo, u);
+    }
+}
+
+Rgb ShadingPoint::eval(const Vec3& wi) const {
+    if (!m_material) return {};
+    if (m_filter == Filter::kDeterministic) return m_material->eval(m_uv, wi, m_wo);
+    return m_material->eval_selected(m_selection, m_uv, m_wo, wi);
+}
+
+LightSample ShadingPoint::sample(double xi1, double xi2) const {
+    if (!m_material) return {};
+    if (m_filter == Filter::kDeterministic) return m_material->sample(m_uv, m_wo, xi1, xi2);
+    return m_material->sample_selected(m_selection, m_uv, m_wo, xi1, xi2);
+}
+
+double ShadingPoint::pdf(const Vec3& wi) const {
+    if (!m_material) return 0;
+    if (m_filter == Filter::kDeterministic) return m_material->pdf(m_uv, m_wo, wi);
+    return m_material->pdf_selected(m_selection, m_uv, m_wo, wi);
+}
+
+Rgb ShadingPoint::albedo() const {
+    return m_material ? m_material->albedo(m_uv, m_wo) : Rgb{};
 }
 
 }  // namespace btf

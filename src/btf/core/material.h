@@ -14,10 +14,28 @@
 /// of btf/core/light_sampler.h (tabulated inverse CDFs per texel tile and sampled view, built
 /// lazily and thread-safely on first use) and a quadrature over the hemisphere. A codec that can
 /// sample from its own representation overrides all three together with native_sampling().
+///
+/// Two contracts of evaluation (filter after shading, after Pharr, Wronski, Salvi and Fajardo
+/// 2024, "Filtering After Shading With Stochastic Texture Filtering"):
+/// - deterministic: eval(), sample(), pdf() — the filtered value, for pictures and metrics;
+/// - stochastic: a ShadingPoint made with Filter::kStochastic draws one texel with probability
+///   equal to its bilinear weight and one view with probability equal to its barycentric weight
+///   from one uniform number, and every eval(ωi) then draws one light the same way from what is
+///   left of that number. Its value is one term of the filter's sum, so its mean over the number
+///   is exactly eval()'s value wherever the codec's decoding after interpolation is linear (rgb,
+///   decorrelated and per-channel planes, YCbCr; the RGB materials of files): see
+///   docs/codecs.md for the codecs whose colour decoding is not. A shading point keeps its
+///   selection, so eval, sample and pdf at one path vertex agree (MIS sees one member of a
+///   mixture whose mean is the filtered BTF). The selection lives here, once
+///   (Material::select()); a codec supplies the uninterpolated lookup (eval_sample()) and may
+///   override the selected lookups for speed or for its own interpolation (mlvq).
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <mutex>
 #include <span>
+#include <string>
 
 #include "btf/core/direction.h"
 #include "btf/core/math.h"
@@ -53,8 +71,68 @@ struct SampleQuery {
     double xi1 = 0, xi2 = 0;
 };
 
+/// Which of the two evaluation contracts a renderer asks for (see above).
+enum class Filter {
+    kDeterministic,  ///< eval(): bilinear × barycentric × barycentric, every term
+    kStochastic,     ///< one term, drawn with probability equal to its weight
+};
+/// "deterministic" or "stochastic".
+const char* to_string(Filter filter);
+/// Parses "deterministic" or "stochastic"; throws btf::Error naming `what` otherwise.
+Filter parse_filter(const std::string& text, const std::string& what = "filter");
+
+/// One term of the filter at a shading point: a texel, a view, and the uniform number left for
+/// drawing a light. `view` indexes sampling().views for every material that uses the shared
+/// angular interpolation, and a codec's own view node for one that overrides select() (mlvq).
+struct Selection {
+    int x = 0, y = 0;
+    int view = 0;
+    double u = 0;  ///< in [0, 1): what is left of the shading point's number
+};
+
+/// One query of a stochastic batch: eval() through a stochastic ShadingPoint with number u.
+struct StochasticQuery {
+    Uv uv;
+    Vec3 wi, wo;
+    double u = 0;
+};
+
+/// One query of a stochastic sampling batch: sample() of a stochastic ShadingPoint.
+struct StochasticSampleQuery {
+    Uv uv;
+    Vec3 wo;
+    double u = 0;  ///< the shading point's number
+    double xi1 = 0, xi2 = 0;
+};
+
+/// Draws index i of `count` weights with probability weight[i] / Σ weight from u ∈ [0, 1), and
+/// replaces u by its position inside the drawn interval (uniform in [0, 1) again and independent
+/// of i), so one number serves several draws. Zero weights are never drawn; all zero draws 0.
+template <typename W>
+inline int pick(const W* weight, int count, double& u) {
+    double total = 0;
+    for (int i = 0; i < count; ++i) total += weight[i];
+    if (!(total > 0)) return 0;
+    const double target = u * total;
+    double low = 0;
+    int last = 0;
+    for (int i = 0; i < count; ++i) {
+        if (!(weight[i] > 0)) continue;
+        last = i;
+        const double high = low + weight[i];
+        if (target < high || i + 1 == count) {
+            u = std::clamp((target - low) / weight[i], 0.0, 0x1.fffffffffffffp-1);
+            return i;
+        }
+        low = high;
+    }
+    u = 0x1.fffffffffffffp-1;
+    return last;
+}
+
 class Material;
 class LightSampler;
+class AngularInterpolator;
 
 namespace detail {
 /// The generic light sampler of a Material, built on first use (double-checked under a mutex;
@@ -72,7 +150,25 @@ class LazyLightSampler {
     mutable std::atomic<const LightSampler*> m_sampler{nullptr};
     mutable std::mutex m_mutex;
 };
+
+/// The angular interpolators over a material's views and lights, for the default stochastic
+/// selection; built on first use like LazyLightSampler.
+struct Interpolators;
+class LazyInterpolators {
+  public:
+    LazyInterpolators() = default;
+    LazyInterpolators(const LazyInterpolators&) {}
+    LazyInterpolators& operator=(const LazyInterpolators&);
+    ~LazyInterpolators();
+    const Interpolators& get(const Material& material) const;
+
+  private:
+    mutable std::atomic<const Interpolators*> m_value{nullptr};
+    mutable std::mutex m_mutex;
+};
 }  // namespace detail
+
+class ShadingPoint;
 
 class Material {
   public:
@@ -123,8 +219,76 @@ class Material {
     /// for comparison.
     const LightSampler& generic_sampler() const { return m_generic_sampler.get(*this); }
 
+    /// The stochastic filter for many queries: out[i] = ShadingPoint(*this, uv, wo, kStochastic,
+    /// u).eval(wi) of query i (out.size() must equal queries.size()). Implementations may
+    /// overlap the memory accesses of many queries.
+    virtual void eval_stochastic_batch(std::span<const StochasticQuery> queries,
+                                       std::span<Rgb> out) const;
+    /// The same for sampling: out[i] = ShadingPoint(…, kStochastic, u).sample(xi1, xi2).
+    virtual void sample_stochastic_batch(std::span<const StochasticSampleQuery> queries,
+                                         std::span<LightSample> out) const;
+
+  protected:
+    /// The stochastic filter's hooks, reached through ShadingPoint only (so that a renderer
+    /// cannot evaluate one selection and sample another). A material overrides them together
+    /// or not at all, except eval_selected() alone for speed.
+    ///
+    /// The texel and the view of a shading point: the bilinear texels of uv (wrapping, texel
+    /// centres at (x + 0.5) / width) and the barycentric views of wo, drawn by pick() from u.
+    virtual Selection select(const Uv& uv, const Vec3& wo, double u) const;
+    /// One term of the filter at the selection: a light drawn from the barycentric weights of wi
+    /// with s.u, then eval_sample(). `uv` and `wo` are the shading point's.
+    virtual Rgb eval_selected(const Selection& s, const Uv& uv, const Vec3& wo,
+                              const Vec3& wi) const;
+    /// A light direction drawn for the selection, its pdf, its value eval_selected() and the
+    /// weight. Default: the generic sampler's table of the selected texel's tile and the
+    /// selected view (no blend over views).
+    virtual LightSample sample_selected(const Selection& s, const Uv& uv, const Vec3& wo,
+                                        double xi1, double xi2) const;
+    /// The density sample_selected() draws wi with.
+    virtual double pdf_selected(const Selection& s, const Uv& uv, const Vec3& wo,
+                                const Vec3& wi) const;
+    /// The shared angular interpolators over sampling().views and .lights (built on first use).
+    const AngularInterpolator& view_interpolator() const;
+    const AngularInterpolator& light_interpolator() const;
+
   private:
+    friend class ShadingPoint;
     detail::LazyLightSampler m_generic_sampler;
+    detail::LazyInterpolators m_interpolators;
+};
+
+/// A material at one path vertex: the position, the view direction and the filter, fixed once,
+/// through which eval, sample and pdf are asked. With Filter::kStochastic the vertex draws its
+/// texel and view once (from `u`), and every call uses that selection; with kDeterministic the
+/// calls are Material::eval(), sample() and pdf() at (uv, wo). A renderer that holds only
+/// shading points cannot mix the two contracts.
+class ShadingPoint {
+  public:
+    ShadingPoint() = default;  ///< no material: every call returns zero
+    /// `u` ∈ [0, 1) (clamped; ignored for kDeterministic): the vertex's filter number.
+    ShadingPoint(const Material& material, const Uv& uv, const Vec3& wo, Filter filter,
+                 double u = 0);
+
+    Rgb eval(const Vec3& wi) const;
+    LightSample sample(double xi1, double xi2) const;
+    double pdf(const Vec3& wi) const;
+    /// The directional albedo at (uv, wo): Material::albedo(), whatever the filter (for AOVs).
+    Rgb albedo() const;
+
+    const Material* material() const { return m_material; }
+    const Uv& uv() const { return m_uv; }
+    const Vec3& wo() const { return m_wo; }
+    Filter filter() const { return m_filter; }
+    /// The drawn term (kStochastic only).
+    const Selection& selection() const { return m_selection; }
+
+  private:
+    const Material* m_material = nullptr;
+    Uv m_uv;
+    Vec3 m_wo;
+    Filter m_filter = Filter::kDeterministic;
+    Selection m_selection;
 };
 
 }  // namespace btf

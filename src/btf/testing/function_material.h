@@ -31,6 +31,14 @@ class FunctionMaterial final : public Material {
                     m_sampling.views.vector(view));
     }
 
+  protected:
+    /// An analytic material has no terms to draw: a stochastic vertex's value is the function
+    /// itself (its sampling still uses the selected texel's and view's generic table).
+    Rgb eval_selected(const Selection&, const Uv& uv, const Vec3& wo,
+                      const Vec3& wi) const override {
+        return m_fn(uv, wi, wo);
+    }
+
   private:
     int m_width, m_height;
     Sampling m_sampling;
