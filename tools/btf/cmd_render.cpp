@@ -19,7 +19,7 @@ namespace btf::cli {
 namespace {
 
 struct RenderArgs {
-    std::string scene, output, integrator, sampling = "material", size;
+    std::string scene, output, integrator, sampling = "material", size, filter;
     int spp = -1, max_depth = -1;
     double time = -1, exposure = NAN;
     int64_t seed = -1;
@@ -48,6 +48,7 @@ RenderSetup setup_render(const RenderArgs& args, render::LoadedScene& loaded) {
     if (args.time >= 0) options.time_limit = args.time;
     if (args.spp == 0 && options.time_limit <= 0) fail("--spp 0 needs --time");
     if (args.seed >= 0) options.seed = uint64_t(args.seed);
+    if (!args.filter.empty()) options.integrator.filter = parse_filter(args.filter, "--filter");
     if (!args.size.empty()) {
         const auto [w, h] = parse_pair(args.size, "--size");
         if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
@@ -159,6 +160,11 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
                     "how BTF surfaces draw light directions: material (their own importance "
                     "sampling), generic (the tabulated sampler, even for mlvq) or cosine")
         ->check(CLI::IsMember({"material", "generic", "cosine"}));
+    cmd->add_option("--filter", args->filter,
+                    "how BTF materials are filtered at a path vertex: stochastic (one texel, view "
+                    "and light drawn by their weights; unbiased and faster; the default unless "
+                    "the scene says otherwise) or deterministic (every term)")
+        ->check(CLI::IsMember({"stochastic", "deterministic"}));
     cmd->add_flag("--aov", args->aovs,
                   "also write <out>.albedo.exr, <out>.normal.exr, <out>.uv.exr");
     cmd->add_option("--compare", args->compare,

@@ -72,6 +72,59 @@ TEST_F(RenderCli, RendersACompressedMaterialOnShapes) {
     EXPECT_EQ(exr.height(), 12);
 }
 
+TEST_F(RenderCli, StochasticAndDeterministicFilteringConvergeToOneImage) {
+    // Filtering after shading is unbiased: the two renders' means agree (fmf rgb decodes
+    // linearly), and the scene's "filter" key and --filter choose it.
+    ASSERT_EQ(run("synth --preset ceramic_tiles --size 8 -o " + path("f.h5")).code, 0);
+    CliResult r =
+        run("compress " + path("f.h5") + " --codec fmf --components 4 -o " + path("f.btfpkg"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string scene = R"({
+      "camera": {"position": [0, 1, 3], "look_at": [0, 0.3, 0], "fov": 40, "width": 24, "height": 16},
+      "render": {"integrator": "direct", "spp": 256, "filter": "FILTER"},
+      "objects": [{"shape": "sphere", "radius": 0.6, "position": [0, 0.4, 0], "uv_scale": 3,
+                   "material": {"type": "btf", "file": "f.btfpkg"}}],
+      "lights": [{"type": "directional", "direction": [1, 2, 1], "irradiance": 3}]
+    })";
+    const auto with = [&](const std::string& filter) {
+        std::string text = scene;
+        text.replace(text.find("FILTER"), 6, filter);
+        return text;
+    };
+    write("fs.json", with("stochastic"));
+    write("fd.json", with("deterministic"));
+    write("fx.json", with("bilinear"));
+    const auto mean = [](const Image& image) {
+        double sum = 0;
+        for (const float v : image.values()) sum += v;
+        return sum / double(image.values().size());
+    };
+    ASSERT_EQ((r = run("--quiet render " + path("fs.json") + " -o " + path("fs.exr"))).code, 0)
+        << r.output;
+    ASSERT_EQ((r = run("--quiet render " + path("fd.json") + " -o " + path("fd.exr"))).code, 0)
+        << r.output;
+    // The command line overrides the scene.
+    ASSERT_EQ((r = run("--quiet render " + path("fs.json") + " --filter deterministic -o " +
+                       path("fo.exr")))
+                  .code,
+              0)
+        << r.output;
+    const double s = mean(read_image(path("fs.exr"))), d = mean(read_image(path("fd.exr")));
+    EXPECT_GT(d, 0.01);
+    EXPECT_NEAR(s / d, 1.0, 0.03);
+    EXPECT_EQ(read_image(path("fo.exr")).values(), read_image(path("fd.exr")).values());
+    EXPECT_NE(read_image(path("fs.exr")).values(), read_image(path("fd.exr")).values());
+    r = run("render " + path("fx.json") + " -o " + path("fx.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("unknown filter \"bilinear\" (stochastic, deterministic)"),
+              std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(path("fx.png")));
+    r = run("render " + path("fs.json") + " --filter bilinear -o " + path("fx.png"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_FALSE(fs::exists(path("fx.png")));
+}
+
 TEST_F(RenderCli, CompareRendersTwoVersionsOfAMaterial) {
     ASSERT_EQ(run("synth --preset brushed_metal --size 8 -o " + path("c.h5")).code, 0);
     ASSERT_EQ(

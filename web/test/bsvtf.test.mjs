@@ -145,7 +145,7 @@ test("BSVTF mode: the tile cache refines the frames as tiles arrive and settles 
     const sceneFile = path.join(OUT, "scene.json");
     writeFileSync(sceneFile, JSON.stringify(scene(fx.packages.woven_fabric), null, 1));
     const cpp = path.join(OUT, "cpp.exr");
-    run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "-o", cpp]);
+    run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "--filter", "deterministic", "-o", cpp]);
     const viewer = path.join(OUT, "viewer.ppm");
     writePpm(viewer, final);
     const metrics = JSON.parse(run(fx.bin, ["image-diff", viewer, cpp, "--json", "-o", path.join(OUT, "viewer-vs-cpp.png")]));

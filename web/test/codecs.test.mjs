@@ -68,7 +68,7 @@ test("each codec's settled frame matches btf render of the same scene within a m
     const sceneFile = path.join(OUT, `${codec}.scene.json`);
     writeFileSync(sceneFile, JSON.stringify(scene, null, 1));
     const cpp = path.join(OUT, `${codec}.cpp.exr`);
-    run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "-o", cpp]);
+    run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "--filter", "deterministic", "-o", cpp]);
     const { page, problems } = await openPage(browser, server.url, `scene=${encodeURIComponent(JSON.stringify(scene))}&deterministic=1&mip=0&hud=0`);
     try {
       await page.waitForFunction(() => window.btfViewer.state.complete, null, { timeout: PATIENCE_MS });

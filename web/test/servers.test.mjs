@@ -123,7 +123,7 @@ test("the final frame matches btf render of the same scene within a mean ΔE00 o
   const sceneFile = path.join(OUT, "scene.json");
   writeFileSync(sceneFile, JSON.stringify(scene, null, 1));
   const cpp = path.join(OUT, "cpp.exr");
-  run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "-o", cpp]);
+  run(fx.bin, ["-q", "render", sceneFile, "--spp", "64", "--filter", "deterministic", "-o", cpp]);
 
   const { page, problems } = await openPage(browser, serve.url, `scene=${encodeURIComponent(JSON.stringify(scene))}&deterministic=1&mip=0&hud=0`);
   try {

@@ -445,6 +445,9 @@ class Simulator {
         if (wo.z < 1e-4) wo = normalize(Vec3{wo.x, wo.y, 1e-4});
         Rgb sum;
         Evaluator::Angular angular;
+        // The simulator's picture is the filtered value (what a viewer shows), not a sample of it.
+        const render::Vertex vertex =
+            object.surface->vertex(p.hit.uv, wo, Filter::kDeterministic, 0);
         for (const render::Light* light : m_delta_lights) {
             const render::LightDirection ld = light->sample(p.hit.position, 0.5, 0.5);
             if (dot(ld.wi, p.hit.geometric_normal) <= 0) continue;
@@ -454,7 +457,7 @@ class Simulator {
             if (scene.occluded(scene.spawn(p.hit, ld.wi), reach)) continue;
             Rgb f;
             if (p.material < 0) {
-                f = object.surface->eval(p.hit.uv, wi, wo);
+                f = object.surface->eval(vertex, wi);
             } else {
                 const SimMaterialState& m = *m_materials[size_t(p.material)];
                 m.evaluator->angular(wi, wo, angular);

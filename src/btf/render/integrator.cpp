@@ -72,9 +72,15 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         // Interpolated normals can put the viewer just below the shading horizon at silhouettes;
         // the material is defined above it.
         if (wo.z < 1e-4) wo = normalize(Vec3{wo.x, wo.y, 1e-4});
+        // The vertex draws its filter term (stochastic filtering) once; every evaluation, sample
+        // and density below goes through it.
+        const double u = options.filter == Filter::kStochastic && surface.draws_filter_number()
+                             ? rng.uniform()
+                             : 0.0;
+        const Vertex vertex = surface.vertex(hit.uv, wo, options.filter, u);
         if (depth == 0 && first) {
             first->found = true;
-            first->albedo = surface.albedo(hit.uv, wo);
+            first->albedo = surface.albedo(vertex);
             first->normal = hit.normal;
             first->uv = hit.uv;
         }
@@ -88,14 +94,14 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
             if (is_black(ld.radiance) || dot(ld.wi, hit.geometric_normal) <= 0) continue;
             const Vec3 wi = hit.to_local(ld.wi);
             if (wi.z <= 0) continue;
-            const Rgb f = surface.eval(hit.uv, wi, wo);
+            const Rgb f = surface.eval(vertex, wi);
             if (is_black(f)) continue;
             const double reach = std::isfinite(ld.distance) ? ld.distance * (1 - 1e-4) : INFINITY;
             if (scene.occluded(scene.spawn(hit, ld.wi), reach)) continue;
             double w = 1 / kPi;
             if (!ld.delta) {
                 const double mis = options.strategy == LightStrategy::kMis
-                                       ? power_heuristic(ld.pdf, surface.pdf(hit.uv, wo, wi))
+                                       ? power_heuristic(ld.pdf, surface.pdf(vertex, wi))
                                        : 1;
                 w *= mis / ld.pdf;
             }
@@ -105,7 +111,7 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         if (depth + 1 >= options.max_depth && !scene.environment() && scene.sphere_lights().empty())
             break;  // no emitter a further ray could reach
         const double xi1 = rng.uniform(), xi2 = rng.uniform();
-        const LightSample s = surface.sample(hit.uv, wo, xi1, xi2);
+        const LightSample s = surface.sample(vertex, xi1, xi2);
         if (!(s.pdf > 0) || is_black(s.weight)) break;
         const Vec3 wi = hit.to_world(s.wi);
         if (dot(wi, hit.geometric_normal) <= 0) break;  // would leave through the surface

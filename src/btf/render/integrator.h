@@ -23,6 +23,9 @@ struct IntegratorOptions {
     /// Bounces before Russian roulette may end a path.
     int roulette_depth = 3;
     LightStrategy strategy = LightStrategy::kMis;
+    /// How BTF vertices filter: stochastic (one texel, view and light drawn per vertex; unbiased,
+    /// and cheaper per path) or deterministic (the filtered value, every term).
+    Filter filter = Filter::kStochastic;
 };
 
 /// What the first surface a camera ray meets looks like, for the AOVs.

@@ -82,9 +82,10 @@ TEST(Render, LambertianPlaneUnderDirectionalAndPointLight) {
 
 TEST(Render, WhiteFurnaceConverges) {
     // A ρ = 1 diffuse sphere in a uniform environment of radiance 1 reflects exactly 1; so does a
-    // ρ = 1 Lambertian BTF through its generic tabulated sampler.
+    // ρ = 1 Lambertian BTF through its generic tabulated sampler, filtered deterministically
+    // (blended view tables) and stochastically (the selected texel's and view's table alone).
     Image white(32, 16, 3, 1.0f);
-    for (int variant = 0; variant < 2; ++variant) {
+    for (int variant = 0; variant < 3; ++variant) {
         Scene scene;
         scene.camera.position = {0, 0, 4};
         scene.camera.look_at = {0, 0, 0};
@@ -101,6 +102,7 @@ TEST(Render, WhiteFurnaceConverges) {
         scene.commit();
         RenderOptions options;
         options.spp = 64;
+        options.integrator.filter = variant == 2 ? Filter::kStochastic : Filter::kDeterministic;
         const RenderResult r = render(scene, options);
         EXPECT_NEAR(mean_channel(r.color, 0), 1.0, 0.01) << "variant " << variant;
         EXPECT_NEAR(mean_channel(r.color, 2), 1.0, 0.01) << "variant " << variant;
@@ -219,44 +221,46 @@ TEST(Render, SurfaceSamplingDensities) {
     const ConductorSurface metal({0.9f, 0.9f, 0.9f}, 0.25);
     const BtfSurface btf(lambertian(0.8f));  // the generic tabulated sampler
     const Vec3 wo = normalize(Vec3{0.4, -0.2, 0.8});
-    for (const Surface* s :
-         {static_cast<const Surface*>(&diffuse), static_cast<const Surface*>(&metal),
-          static_cast<const Surface*>(&btf)}) {
-        // pdf() integrates to at most 1 over the hemisphere (the conductor loses the half vectors
-        // that reflect below the horizon), and sample() reports pdf() of what it draws.
-        double integral = 0;
-        constexpr int kN = 256;
-        for (int i = 0; i < kN; ++i)
-            for (int j = 0; j < kN; ++j) {
-                const double cos_t = (i + 0.5) / kN, phi = 2 * kPi * (j + 0.5) / kN;
-                const double sin_t = std::sqrt(1 - cos_t * cos_t);
-                integral += s->pdf({}, wo, {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
-            }
-        integral *= 2 * kPi / (double(kN) * kN);
-        EXPECT_LE(integral, 1.01);
-        EXPECT_GT(integral, 0.9);
-        if (s != &metal) EXPECT_NEAR(integral, 1.0, 0.01);  // nothing drawn below the horizon
-        double weight_mean = 0, value_integral = 0;
-        for (int i = 0; i < 64; ++i)
-            for (int j = 0; j < 64; ++j) {
-                const LightSample ls = s->sample({}, wo, (i + 0.5) / 64, (j + 0.5) / 64);
-                if (ls.pdf > 0) {
-                    EXPECT_NEAR(ls.pdf, s->pdf({}, wo, ls.wi), 1e-9 * (1 + ls.pdf));
+    for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic})
+        for (const Surface* s :
+             {static_cast<const Surface*>(&diffuse), static_cast<const Surface*>(&metal),
+              static_cast<const Surface*>(&btf)}) {
+            const Vertex v = s->vertex({0.3, 0.6}, wo, filter, 0.37);
+            // pdf() integrates to at most 1 over the hemisphere (the conductor loses the half
+            // vectors that reflect below the horizon), and sample() reports pdf() of what it draws.
+            double integral = 0;
+            constexpr int kN = 256;
+            for (int i = 0; i < kN; ++i)
+                for (int j = 0; j < kN; ++j) {
+                    const double cos_t = (i + 0.5) / kN, phi = 2 * kPi * (j + 0.5) / kN;
+                    const double sin_t = std::sqrt(1 - cos_t * cos_t);
+                    integral += s->pdf(v, {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t});
                 }
-                weight_mean += ls.weight.g;
-            }
-        weight_mean /= 64 * 64;
-        for (int i = 0; i < kN; ++i)
-            for (int j = 0; j < kN; ++j) {
-                const double cos_t = (i + 0.5) / kN, phi = 2 * kPi * (j + 0.5) / kN;
-                const double sin_t = std::sqrt(1 - cos_t * cos_t);
-                value_integral +=
-                    s->eval({}, {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t}, wo).g;
-            }
-        value_integral *= 2 * kPi / (double(kN) * kN);
-        // E[value / pdf] = ∫ value dω where pdf > 0.
-        EXPECT_NEAR(weight_mean, value_integral, 0.02 * value_integral);
-    }
+            integral *= 2 * kPi / (double(kN) * kN);
+            EXPECT_LE(integral, 1.01);
+            EXPECT_GT(integral, 0.9);
+            if (s != &metal) EXPECT_NEAR(integral, 1.0, 0.01);  // nothing drawn below the horizon
+            double weight_mean = 0, value_integral = 0;
+            for (int i = 0; i < 64; ++i)
+                for (int j = 0; j < 64; ++j) {
+                    const LightSample ls = s->sample(v, (i + 0.5) / 64, (j + 0.5) / 64);
+                    if (ls.pdf > 0) {
+                        EXPECT_NEAR(ls.pdf, s->pdf(v, ls.wi), 1e-9 * (1 + ls.pdf));
+                    }
+                    weight_mean += ls.weight.g;
+                }
+            weight_mean /= 64 * 64;
+            for (int i = 0; i < kN; ++i)
+                for (int j = 0; j < kN; ++j) {
+                    const double cos_t = (i + 0.5) / kN, phi = 2 * kPi * (j + 0.5) / kN;
+                    const double sin_t = std::sqrt(1 - cos_t * cos_t);
+                    value_integral +=
+                        s->eval(v, {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t}).g;
+                }
+            value_integral *= 2 * kPi / (double(kN) * kN);
+            // E[value / pdf] = ∫ value dω where pdf > 0.
+            EXPECT_NEAR(weight_mean, value_integral, 0.02 * value_integral);
+        }
 }
 
 TEST(Render, SameImageForAnyThreadCount) {

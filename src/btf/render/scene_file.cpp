@@ -170,7 +170,7 @@ class SceneReader {
     }
 
     void read_render(const Node& n, SceneSettings& s) const {
-        n.allow({"integrator", "spp", "time", "max_depth", "seed", "exposure"});
+        n.allow({"integrator", "spp", "time", "max_depth", "seed", "exposure", "filter"});
         const std::string integrator = n.string("integrator", "path");
         s.integrator = integrator;
         if (integrator == "direct")
@@ -187,6 +187,13 @@ class SceneReader {
             n.fail("\"spp\" = 0 needs a \"time\" limit");
         s.options.seed = uint64_t(n.integer("seed", 1, 0, INT32_MAX));
         s.exposure = n.number("exposure", 0, -30, 30);
+        const std::string filter = n.string("filter", "stochastic");
+        if (filter == "stochastic")
+            s.options.integrator.filter = Filter::kStochastic;
+        else if (filter == "deterministic")
+            s.options.integrator.filter = Filter::kDeterministic;
+        else
+            n.fail(fmt::format("unknown filter \"{}\" (stochastic, deterministic)", filter));
     }
 
     std::shared_ptr<const Surface> read_material(const Node& n) {

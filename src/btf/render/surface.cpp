@@ -33,54 +33,62 @@ Vec3 cosine_direction(double xi1, double xi2) {
 
 // ---- BTF --------------------------------------------------------------------------------------
 
-Rgb BtfSurface::eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const {
-    if (wi.z <= 0 || wo.z <= 0) return {};
-    // Compressed values can dip below zero (a truncated factorization rings); negative radiance
-    // has no physical meaning and would make a pixel's running mean noisy around zero.
-    return clamp_black(m_material->eval(uv, wi, wo));
+Vertex BtfSurface::vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const {
+    return {uv, wo, ShadingPoint(*m_material, uv, wo, filter, u)};
 }
 
-LightSample BtfSurface::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+Rgb BtfSurface::eval(const Vertex& v, const Vec3& wi) const {
+    if (wi.z <= 0 || v.wo.z <= 0) return {};
+    // Compressed values can dip below zero (a truncated factorization rings); negative radiance
+    // has no physical meaning and would make a pixel's running mean noisy around zero.
+    return clamp_black(v.btf.eval(wi));
+}
+
+LightSample BtfSurface::sample(const Vertex& v, double xi1, double xi2) const {
     if (m_mode == SamplingMode::kCosine) {
         const Vec3 wi = cosine_direction(xi1, xi2);
-        return finish(wi, wi.z / kPi, eval(uv, wi, wo));
+        return finish(wi, wi.z / kPi, eval(v, wi));
     }
-    LightSample s = m_mode == SamplingMode::kGeneric
-                        ? m_material->generic_sampler().sample(uv, wo, xi1, xi2)
-                        : m_material->sample(uv, wo, xi1, xi2);
+    if (m_mode == SamplingMode::kGeneric) {
+        // The generic sampler's blended tables at (uv, wo) draw the direction and give its
+        // density; the value is the vertex's own (its selection, when stochastic).
+        const LightSample s = m_material->generic_sampler().sample(v.uv, v.wo, xi1, xi2);
+        return finish(s.wi, s.pdf, eval(v, s.wi));
+    }
+    LightSample s = v.btf.sample(xi1, xi2);
     s.value = clamp_black(s.value);
     s.weight = clamp_black(s.weight);
     return s;
 }
 
-double BtfSurface::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
+double BtfSurface::pdf(const Vertex& v, const Vec3& wi) const {
     if (wi.z <= 0) return 0;
     if (m_mode == SamplingMode::kCosine) return wi.z / kPi;
-    if (m_mode == SamplingMode::kGeneric) return m_material->generic_sampler().pdf(uv, wo, wi);
-    return m_material->pdf(uv, wo, wi);
+    if (m_mode == SamplingMode::kGeneric) return m_material->generic_sampler().pdf(v.uv, v.wo, wi);
+    return v.btf.pdf(wi);
 }
 
-Rgb BtfSurface::albedo(const Uv& uv, const Vec3& wo) const {
-    return clamp_black(m_material->albedo(uv, wo));
+Rgb BtfSurface::albedo(const Vertex& v) const {
+    return clamp_black(v.btf.albedo());
 }
 
 // ---- diffuse ----------------------------------------------------------------------------------
 
-Rgb DiffuseSurface::eval(const Uv&, const Vec3& wi, const Vec3& wo) const {
-    if (wi.z <= 0 || wo.z <= 0) return {};
+Rgb DiffuseSurface::eval(const Vertex& v, const Vec3& wi) const {
+    if (wi.z <= 0 || v.wo.z <= 0) return {};
     return m_albedo * float(wi.z);
 }
 
-LightSample DiffuseSurface::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+LightSample DiffuseSurface::sample(const Vertex& v, double xi1, double xi2) const {
     const Vec3 wi = cosine_direction(xi1, xi2);
-    return finish(wi, wi.z / kPi, eval(uv, wi, wo));
+    return finish(wi, wi.z / kPi, eval(v, wi));
 }
 
-double DiffuseSurface::pdf(const Uv&, const Vec3&, const Vec3& wi) const {
+double DiffuseSurface::pdf(const Vertex&, const Vec3& wi) const {
     return wi.z > 0 ? wi.z / kPi : 0;
 }
 
-Rgb DiffuseSurface::albedo(const Uv&, const Vec3&) const {
+Rgb DiffuseSurface::albedo(const Vertex&) const {
     return m_albedo;
 }
 
@@ -105,7 +113,8 @@ double ggx_lambda(double alpha, double cos_t) {
 
 }  // namespace
 
-Rgb ConductorSurface::eval(const Uv&, const Vec3& wi, const Vec3& wo) const {
+Rgb ConductorSurface::eval(const Vertex& v, const Vec3& wi) const {
+    const Vec3& wo = v.wo;
     if (wi.z <= 0 || wo.z <= 0) return {};
     const Vec3 h = normalize(wi + wo);
     const double d = ggx_d(m_alpha, h.z);
@@ -117,7 +126,8 @@ Rgb ConductorSurface::eval(const Uv&, const Vec3& wi, const Vec3& wo) const {
     return f * float(kPi * d * g / (4 * wo.z));
 }
 
-LightSample ConductorSurface::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
+LightSample ConductorSurface::sample(const Vertex& v, double xi1, double xi2) const {
+    const Vec3& wo = v.wo;
     // Half vectors with density D(h) cos θh, reflected about h.
     const double xi = std::min(xi1, 1 - 1e-12);
     const double tan2 = m_alpha * m_alpha * xi / (1 - xi);
@@ -129,10 +139,11 @@ LightSample ConductorSurface::sample(const Uv& uv, const Vec3& wo, double xi1, d
     if (wo_h <= 0 || wo.z <= 0) return finish({0, 0, 1}, 0, {});
     const Vec3 wi = h * (2 * wo_h) - wo;
     if (wi.z <= 0) return finish(wi, 0, {});
-    return finish(wi, pdf(uv, wo, wi), eval(uv, wi, wo));
+    return finish(wi, pdf(v, wi), eval(v, wi));
 }
 
-double ConductorSurface::pdf(const Uv&, const Vec3& wo, const Vec3& wi) const {
+double ConductorSurface::pdf(const Vertex& v, const Vec3& wi) const {
+    const Vec3& wo = v.wo;
     if (wi.z <= 0 || wo.z <= 0) return 0;
     const Vec3 h = normalize(wi + wo);
     const double wo_h = dot(wo, h);
@@ -140,13 +151,13 @@ double ConductorSurface::pdf(const Uv&, const Vec3& wo, const Vec3& wi) const {
     return ggx_d(m_alpha, h.z) * h.z / (4 * wo_h);
 }
 
-Rgb ConductorSurface::albedo(const Uv& uv, const Vec3& wo) const {
+Rgb ConductorSurface::albedo(const Vertex& v) const {
     // (1/π) E[value / pdf] over a fixed 16 × 16 stratified grid: deterministic, and only used for
     // the albedo AOV.
     constexpr int kN = 16;
     Rgb sum;
     for (int i = 0; i < kN; ++i)
-        for (int j = 0; j < kN; ++j) sum += sample(uv, wo, (i + 0.5) / kN, (j + 0.5) / kN).weight;
+        for (int j = 0; j < kN; ++j) sum += sample(v, (i + 0.5) / kN, (j + 0.5) / kN).weight;
     return sum * float(1.0 / (kN * kN * kPi));
 }
 

@@ -25,31 +25,55 @@ enum class SamplingMode {
     kGeneric,
 };
 
+/// One path vertex on a surface: where and from where it is seen, and for a BTF the shading
+/// point (with its filter and, when stochastic, its drawn texel and view) through which every
+/// eval, sample and pdf at the vertex goes. Made once per vertex by Surface::vertex().
+struct Vertex {
+    Uv uv;
+    Vec3 wo;
+    ShadingPoint btf;  ///< the material's shading point (BtfSurface only)
+};
+
 class Surface {
   public:
     virtual ~Surface() = default;
-    /// value(uv, wi, wo); black when either direction is below the horizon.
-    virtual Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const = 0;
-    /// A light direction for (uv, wo) from (xi1, xi2) with its pdf per solid angle, value and
+    /// The vertex at `uv` seen from `wo` (local frame). `filter` and `u` ∈ [0, 1) (the vertex's
+    /// filter number) matter to a BTF only: with Filter::kStochastic its texel and view are drawn
+    /// here, once.
+    virtual Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const {
+        (void)filter, (void)u;
+        return {uv, wo, {}};
+    }
+    /// True when vertex() draws with `u` under Filter::kStochastic (a BTF): the integrator takes
+    /// a number from the path's generator only then, so that other surfaces' paths, and
+    /// deterministic renders, keep their random sequences.
+    virtual bool draws_filter_number() const { return false; }
+    /// value(uv, wi, wo) at the vertex; black when either direction is below the horizon.
+    virtual Rgb eval(const Vertex& v, const Vec3& wi) const = 0;
+    /// A light direction for the vertex from (xi1, xi2) with its pdf per solid angle, value and
     /// value / pdf.
-    virtual LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const = 0;
-    /// The density sample() draws `wi` with.
-    virtual double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const = 0;
-    /// Directional albedo (1/π) ∫ value dωi, for the albedo AOV.
-    virtual Rgb albedo(const Uv& uv, const Vec3& wo) const = 0;
+    virtual LightSample sample(const Vertex& v, double xi1, double xi2) const = 0;
+    /// The density sample() draws `wi` with at the vertex.
+    virtual double pdf(const Vertex& v, const Vec3& wi) const = 0;
+    /// Directional albedo (1/π) ∫ value dωi at the vertex, for the albedo AOV (the filtered
+    /// value whatever the filter).
+    virtual Rgb albedo(const Vertex& v) const = 0;
 };
 
 /// A BTF material. uv wraps (the material tiles); the object's uv scale and rotation are applied
-/// by the renderer before the lookup.
+/// by the renderer before the lookup. Every call goes through the vertex's ShadingPoint, so a
+/// stochastic vertex evaluates, samples and reports densities for one selection.
 class BtfSurface final : public Surface {
   public:
     BtfSurface(std::shared_ptr<const Material> material,
                SamplingMode mode = SamplingMode::kMaterial)
         : m_material(std::move(material)), m_mode(mode) {}
-    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
-    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
-    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
-    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+    Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const override;
+    bool draws_filter_number() const override { return true; }
+    Rgb eval(const Vertex& v, const Vec3& wi) const override;
+    LightSample sample(const Vertex& v, double xi1, double xi2) const override;
+    double pdf(const Vertex& v, const Vec3& wi) const override;
+    Rgb albedo(const Vertex& v) const override;
     const Material& material() const { return *m_material; }
 
   private:
@@ -61,10 +85,10 @@ class BtfSurface final : public Surface {
 class DiffuseSurface final : public Surface {
   public:
     explicit DiffuseSurface(const Rgb& albedo) : m_albedo(albedo) {}
-    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
-    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
-    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
-    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+    Rgb eval(const Vertex& v, const Vec3& wi) const override;
+    LightSample sample(const Vertex& v, double xi1, double xi2) const override;
+    double pdf(const Vertex& v, const Vec3& wi) const override;
+    Rgb albedo(const Vertex& v) const override;
 
   private:
     Rgb m_albedo;
@@ -77,10 +101,10 @@ class DiffuseSurface final : public Surface {
 class ConductorSurface final : public Surface {
   public:
     ConductorSurface(const Rgb& f0, double roughness);
-    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
-    LightSample sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const override;
-    double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const override;
-    Rgb albedo(const Uv& uv, const Vec3& wo) const override;
+    Rgb eval(const Vertex& v, const Vec3& wi) const override;
+    LightSample sample(const Vertex& v, double xi1, double xi2) const override;
+    double pdf(const Vertex& v, const Vec3& wi) const override;
+    Rgb albedo(const Vertex& v) const override;
 
   private:
     Rgb m_f0;
