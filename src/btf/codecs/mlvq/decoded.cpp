@@ -132,4 +132,24 @@ std::array<float, 3> DecodedBooks::blend(const Sample* const* entries, const flo
             m_chroma_lo[1] * c_total + m_chroma_step[1] * c2};
 }
 
+void DecodedBooks::luminances(const Sample* s, int n, float* out) {
+    int j = 0;
+#ifdef BTF_MLVQ_SIMD
+    // Eight samples (32 bytes) → the low halves of their 32-bit lanes → packed to 16 bits → floats.
+    auto eight = [s, out](int j) {
+        __m256i v;
+        std::memcpy(&v, s + j, sizeof v);
+        v = _mm256_and_si256(v, _mm256_set1_epi32(0xffff));
+        v = _mm256_permute4x64_epi64(_mm256_packus_epi32(v, v), 0x08);
+        _mm256_storeu_ps(out + j, _mm256_cvtph_ps(_mm256_castsi256_si128(v)));
+    };
+    for (; j + 8 <= n; j += 8) eight(j);
+    if (j < n && n >= 8) {  // the last eight again, overlapping: no scalar tail
+        eight(n - 8);
+        j = n;
+    }
+#endif
+    for (; j < n; ++j) out[j] = luminance(s[j]);
+}
+
 }  // namespace btf::mlvq

@@ -23,6 +23,11 @@
 // (ωi, ωo) reconstructed through the chain of code-books and blended multilinearly (Fig. 6),
 // then converted to RGB.
 //
+// Stochastic filtering (btf/core/material.h): a shading point draws one of the 4 texels × 2 θv ×
+// 2 φv view nodes of that blend with probability equal to its weight, and its term reads that
+// one chain, bilinear in (α, β) within its M entry; its mean is eval() for YCbCr colour.
+// Sampling draws from the term's M entry alone, as sample() does from a mixture component.
+//
 // Parameters (btf codecs mlvq):
 //   threshold=3e-5     ε_P4: mse — largest mean squared error of a texel's F_x in plane units
 //                      (Y ≈ reflectance), mssim — largest 98th percentile of 1 − SSIM
@@ -598,25 +603,33 @@ namespace {
 
 // Inverse CDF of a density that is linear between samples v[0 … n−1] (unit spacing), given the
 // target mass in [0, Σ trapezoids): the fractional sample index. Within a segment with end
-// values a, b the mass up to t ∈ [0, 1] is a t + (b − a) t² / 2.
+// values a, b the mass up to t ∈ [0, 1] is a t + (b − a) t² / 2. The segment is the number of
+// segments whose cumulative mass the target reaches (the last one takes any excess), counted
+// over all of them rather than found by a loop that stops there: a random target would
+// mispredict that loop's exit once per draw, and the draws of sampling are random.
 template <typename Value>
 double invert_linear(Value v, int n, double target) {
-    for (int i = 0; i + 1 < n; ++i) {
-        const double a = v(i), b = v(i + 1), segment = 0.5 * (a + b);
-        if (target < segment || i + 2 == n) {
-            const double r = std::clamp(target, 0.0, segment);
-            double x;
-            if (std::abs(b - a) < 1e-12 * std::max(a + b, 1e-300))
-                x = segment > 0 ? r / segment : 0.5;
-            else if (r > 0)  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], stable form
-                x = 2 * r / (a + std::sqrt(std::max(0.0, a * a + 2 * (b - a) * r)));
-            else  // r = 0 with a = 0 (or a crafted a < 0) would be 0 / 0
-                x = 0;
-            return i + std::clamp(x, 0.0, 1.0);
-        }
-        target -= segment;
+    int i = 0;
+    double low = 0, cumulative = 0, a = v(0);
+    for (int k = 0; k + 2 < n; ++k) {
+        const double b = v(k + 1);
+        cumulative += 0.5 * (a + b);
+        const bool below = cumulative <= target;
+        i += below;
+        low = below ? cumulative : low;
+        a = b;
     }
-    return 0;
+    a = v(i);
+    const double b = v(i + 1), segment = 0.5 * (a + b);
+    const double r = std::clamp(target - low, 0.0, segment);
+    double x;
+    if (std::abs(b - a) < 1e-12 * std::max(a + b, 1e-300))
+        x = segment > 0 ? r / segment : 0.5;
+    else if (r > 0)  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], stable form
+        x = 2 * r / (a + std::sqrt(std::max(0.0, a * a + 2 * (b - a) * r)));
+    else  // r = 0 with a = 0 (or a crafted a < 0) would be 0 / 0
+        x = 0;
+    return i + std::clamp(x, 0.0, 1.0);
 }
 
 // Uniform hemisphere: (ξ1, ξ2) → direction, pdf 1 / 2π.
@@ -639,6 +652,9 @@ struct MlvqMaterial::SampleState {
     int i0 = 0;           ///< its α row below the drawn α
     double x = 0, y = 0;  ///< drawn (α, u) as fractional sample indices
     LightSample out;
+    /// A stochastic shading point's sampling (sample_selected()): the mixture is its one term.
+    bool stochastic = false;
+    Selection selection;
 };
 
 // View lookup and texels.
@@ -687,20 +703,21 @@ void MlvqMaterial::sample_beta(SampleState& s) const {
         s.out.wi = uniform_hemisphere(s.xi1, s.xi2);
         return;
     }
-    const DecodedBooks::Sample* f = s.mix.g.entry[s.component];
     const double tx = s.x - s.i0;
-    double column[MlvqGrid::kMaxAxis];
-    double row_mass = 0;
-    for (int j = 0; j < g.n_beta; ++j) {
-        column[j] = (1 - tx) * DecodedBooks::luminance(f[s.i0 * g.n_beta + j]) +
-                    tx * DecodedBooks::luminance(f[(s.i0 + 1) * g.n_beta + j]);
-        if (j > 0) row_mass += 0.5 * (column[j - 1] + column[j]);
-    }
-    s.y = invert_linear([&column](int j) { return column[j]; }, g.n_beta, s.xi2 * row_mass);
+    // The two rows' luminances (adjacent in the entry), then their blend at α.
+    float y[2 * MlvqGrid::kMaxAxis], column[MlvqGrid::kMaxAxis];
+    DecodedBooks::luminances(s.mix.g.entry[s.component] + s.i0 * g.n_beta, 2 * g.n_beta, y);
+    const float t0 = float(1 - tx), t1 = float(tx);
+    for (int j = 0; j < g.n_beta; ++j) column[j] = t0 * y[j] + t1 * y[g.n_beta + j];
+    // The column's trapezoid sum is linear in the rows': their precomputed integrals blended.
+    const float* rows = m_decoded->rows(s.mix.g.index[s.component]);
+    const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
+    s.y = invert_linear([&column](int j) { return double(column[j]); }, g.n_beta, s.xi2 * row_mass);
     const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
     const double u = -1 + 2 * s.y / (g.n_beta - 1);
     s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);
     s.out.wi.z = std::max(s.out.wi.z, 0.0);
+    if (s.stochastic) return;  // the corners of wi itself: selected_corners()
     MlvqWeights w = s.mix.view.weights;
     const int j0 = std::min(int(s.y), g.n_beta - 2);
     w.alpha = {{s.i0, s.i0 + 1}, {float(1 - tx), float(tx)}};
@@ -713,16 +730,19 @@ void MlvqMaterial::sample_finish(SampleState& s) const {
     LightSample& out = s.out;
     if (!(s.mix.total > 0)) {
         out.pdf = 1 / (2 * kPi);
-        out.value = eval(s.uv, out.wi, s.wo);
+        out.value = s.stochastic ? eval_selected(s.selection, s.uv, s.wo, out.wi)
+                                 : eval(s.uv, out.wi, s.wo);
     } else {
         const std::array<float, 3> p = combine(s.mix.g);
         out.pdf = std::max(0.0, double(p[0])) / (s.mix.total * Mixture::cell(m_books->grid));
         out.value = from_planes(m_books->colour, p[0], p[1], p[2]);
     }
     out.weight = {};
-    if (out.pdf > 0)
-        out.weight = {float(out.value.r / out.pdf), float(out.value.g / out.pdf),
-                      float(out.value.b / out.pdf)};
+    if (out.pdf > 0) {
+        const double inverse = 1 / out.pdf;
+        out.weight = {float(out.value.r * inverse), float(out.value.g * inverse),
+                      float(out.value.b * inverse)};
+    }
 }
 
 LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, double xi2) const {
@@ -846,6 +866,282 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
         }
     }
     return {float(r / kPi), float(gg / kPi), float(bb / kPi)};
+}
+
+// ---- stochastic filtering -----------------------------------------------------------------------
+
+// One term of eval()'s sum, drawn with probability equal to its weight there: a texel of the 4
+// by its bilinear weight (x, then y, as Material::select draws them), then a view node of the
+// 2 φv × 2 θv by φv weight × θv weight, each with pick() and what the previous draw left of u.
+Selection MlvqMaterial::select_view(const Uv& uv, const MlvqWeights& view, double u) const {
+    const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
+    Selection s;
+    s.u = u;
+    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
+    s.x = pick(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
+    s.y = pick(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
+    // The products gather() weights the nodes with, in its order (φv major).
+    const float wv[4] = {view.phi_v.weight[0] * view.theta_v.weight[0],
+                         view.phi_v.weight[0] * view.theta_v.weight[1],
+                         view.phi_v.weight[1] * view.theta_v.weight[0],
+                         view.phi_v.weight[1] * view.theta_v.weight[1]};
+    const int node = pick(wv, 4, s.u);
+    s.view =
+        view.phi_v.index[node >> 1] * m_decoded->grid().n_theta_v + view.theta_v.index[node & 1];
+    return s;
+}
+
+// The directions of a shading point go through lookup_views() and lookup_lights() with n = 1:
+// the code the batches run four queries at a time, so that both give the same bits.
+Selection MlvqMaterial::select(const Uv& uv, const Vec3& wo, double u) const {
+    ViewLookup view;
+    lookup_views(m_books->grid, &wo, 1, &view);
+    return select_view(uv, view.weights, u);
+}
+
+// The selection's M entry as a one-component Gathered: luminance scale c_P6 · c_P4 · c_P3 and
+// chromaticity weight 1 (the weights of eval()'s sum are what the draw's probabilities stand
+// for). The corners are the caller's.
+void MlvqMaterial::gather_selected(const Selection& s, Gathered& out) const {
+    const IndexScale& e6 = m_index.p6[size_t(s.y) * size_t(m_index.width) + size_t(s.x)];
+    const IndexScale& v = m_decoded->views(e6.index)[s.view];
+    out.count = 1;
+    out.index[0] = v.index;
+    out.entry[0] = m_decoded->entry(v.index);
+    out.y_scale[0] = e6.scale * v.scale;
+    out.c_weight[0] = 1;
+}
+
+// The (α, β) corners of ωi in the onion frame of ωo.
+DecodedBooks::Corners MlvqMaterial::light_corners(const Vec3& wi, const Vec3& wo) const {
+    ViewLookup view;
+    lookup_views(m_books->grid, &wo, 1, &view);
+    MlvqWeights w;
+    lookup_lights(m_books->grid, &wi, &view, 1, &w);
+    return DecodedBooks::Corners(m_books->grid, w);
+}
+
+// Bilinear in (α, β) within the one entry rather than a draw of one of its 4 light samples: the
+// 2 × 2 samples are two adjacent 8-byte reads, and a deterministic term keeps the variance to
+// that of the texel and the view node.
+Rgb MlvqMaterial::eval_selected(const Selection& s, const Uv&, const Vec3& wo,
+                                const Vec3& wi) const {
+    Gathered g;
+    gather_selected(s, g);
+    g.corners = light_corners(wi, wo);
+    const std::array<float, 3> p = combine(g);
+    return from_planes(m_books->colour, p[0], p[1], p[2]);
+}
+
+// sample()'s stages with the selection's entry as the whole mixture (gather_selected() next).
+void MlvqMaterial::sample_selected_begin(const Selection& s, const Uv& uv, const Vec3& wo,
+                                         const ViewLookup& view, double xi1, double xi2,
+                                         SampleState& out) const {
+    out.uv = uv;
+    out.wo = wo;
+    out.xi1 = std::clamp(xi1, 0.0, std::nextafter(1.0, 0.0));
+    out.xi2 = std::clamp(xi2, 0.0, std::nextafter(1.0, 0.0));
+    out.mix.view = view;
+    out.stochastic = true;
+    out.selection = s;
+}
+
+// The (α, β) corners of the drawn directions of states[0 … n − 1] (n ≤ 4), through
+// lookup_lights() as eval_selected() and pdf_selected() find them rather than from the drawn
+// (α, u), which the direction reproduces only up to rounding: the sample's value and pdf are
+// then exactly what eval_selected() and pdf_selected() return for its direction, as multiple
+// importance sampling needs.
+void MlvqMaterial::selected_corners(SampleState* states, size_t n) const {
+    Vec3 wi[4];
+    ViewLookup view[4];
+    MlvqWeights w[4];
+    for (size_t i = 0; i < n; ++i) wi[i] = states[i].out.wi, view[i] = states[i].mix.view;
+    lookup_lights(m_books->grid, wi, view, n, w);
+    for (size_t i = 0; i < n; ++i)
+        states[i].mix.g.corners = DecodedBooks::Corners(m_books->grid, w[i]);
+}
+
+LightSample MlvqMaterial::sample_selected(const Selection& s, const Uv& uv, const Vec3& wo,
+                                          double xi1, double xi2) const {
+    SampleState st;
+    ViewLookup view;
+    lookup_views(m_books->grid, &wo, 1, &view);
+    sample_selected_begin(s, uv, wo, view, xi1, xi2, st);
+    gather_selected(s, st.mix.g);
+    sample_mixture(st);
+    sample_alpha(st);
+    sample_beta(st);
+    selected_corners(&st, 1);
+    sample_finish(st);
+    return st.out;
+}
+
+double MlvqMaterial::pdf_selected(const Selection& s, const Uv&, const Vec3& wo,
+                                  const Vec3& wi) const {
+    if (!(wi.z >= 0)) return 0;
+    SampleState st;
+    gather_selected(s, st.mix.g);
+    sample_mixture(st);
+    if (!(st.mix.total > 0)) return 1 / (2 * kPi);
+    st.mix.g.corners = light_corners(wi, wo);
+    return std::max(0.0, double(combine(st.mix.g)[0])) /
+           (st.mix.total * Mixture::cell(m_books->grid));
+}
+
+namespace {
+
+// ShadingPoint's clamp of the filter number.
+double filter_number(double u) {
+    if (!(u >= 0)) u = 0;  // NaN too
+    return std::min(u, 0x1.fffffffffffffp-1);
+}
+
+// Hints every cache line of [begin, end].
+void prefetch_range(const void* begin, const void* end) {
+    const uintptr_t line = 64, last = reinterpret_cast<uintptr_t>(end) | (line - 1);
+    for (uintptr_t a = reinterpret_cast<uintptr_t>(begin) & ~(line - 1); a <= last; a += line)
+        __builtin_prefetch(reinterpret_cast<const void*>(a));
+}
+
+// The stochastic batches run their queries in blocks of kBlock (the lanes of lookup_views())
+// through a software pipeline of `Stages` stages: iteration j runs stage 0 of block j, stage 1
+// of block j − 1, …, and each stage prefetches what the block's next stage reads (P6, the fused
+// view, the M entry), which then has a whole iteration of every stage's arithmetic to arrive.
+// A query's own operations and their order are those of the ShadingPoint path, so the results
+// are the same bit for bit. `stage(k, first, count, slot)` runs stage k of queries [first,
+// first + count), whose state is at ring slot `slot` (of Stages).
+constexpr size_t kBlock = 4;
+template <size_t Stages, typename Stage>
+void pipeline(size_t n, Stage&& stage) {
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    for (size_t j = 0; j < blocks + Stages - 1; ++j)
+        for (size_t k = 0; k < Stages; ++k)
+            if (j >= k && j - k < blocks) {
+                const size_t b = j - k;
+                stage(k, b * kBlock, std::min(kBlock, n - b * kBlock), b % Stages);
+            }
+}
+
+}  // namespace
+
+void MlvqMaterial::eval_stochastic_batch(std::span<const StochasticQuery> queries,
+                                         std::span<Rgb> out) const {
+    if (queries.size() != out.size())
+        fail("eval_stochastic_batch: {} queries but {} outputs", queries.size(), out.size());
+    constexpr size_t kStages = 4;
+    struct State {
+        Selection selection;
+        ViewLookup view;
+        Gathered g;
+    };
+    State ring[kStages][kBlock];
+    const MlvqGrid& grid = m_books->grid;
+    auto p6 = [this](const Selection& s) -> const IndexScale& {
+        return m_index.p6[size_t(s.y) * size_t(m_index.width) + size_t(s.x)];
+    };
+    pipeline<kStages>(queries.size(), [&](size_t stage, size_t first, size_t count, size_t slot) {
+        const StochasticQuery* q = queries.data() + first;
+        State* s = ring[slot];
+        Vec3 d[kBlock];
+        switch (stage) {
+            case 0: {  // the view and the draw
+                ViewLookup view[kBlock];
+                for (size_t i = 0; i < count; ++i) d[i] = q[i].wo;
+                lookup_views(grid, d, count, view);
+                for (size_t i = 0; i < count; ++i) {
+                    s[i].view = view[i];
+                    s[i].selection = select_view(q[i].uv, view[i].weights, filter_number(q[i].u));
+                    __builtin_prefetch(&p6(s[i].selection));
+                }
+                break;
+            }
+            case 1: {  // the light's (α, β) corners
+                ViewLookup view[kBlock];
+                MlvqWeights w[kBlock];
+                for (size_t i = 0; i < count; ++i) d[i] = q[i].wi, view[i] = s[i].view;
+                lookup_lights(grid, d, view, count, w);
+                for (size_t i = 0; i < count; ++i) {
+                    s[i].g.corners = DecodedBooks::Corners(grid, w[i]);
+                    const Selection& sel = s[i].selection;
+                    __builtin_prefetch(m_decoded->views(p6(sel).index) + sel.view);
+                }
+                break;
+            }
+            case 2:  // the M entry
+                for (size_t i = 0; i < count; ++i) {
+                    gather_selected(s[i].selection, s[i].g);
+                    s[i].g.prefetch(0);
+                }
+                break;
+            default:
+                for (size_t i = 0; i < count; ++i) {
+                    const std::array<float, 3> p = combine(s[i].g);
+                    out[first + i] = from_planes(m_books->colour, p[0], p[1], p[2]);
+                }
+        }
+    });
+}
+
+void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery> queries,
+                                           std::span<LightSample> out) const {
+    if (queries.size() != out.size())
+        fail("sample_stochastic_batch: {} queries but {} outputs", queries.size(), out.size());
+    // sample_selected()'s stages: the view and the draw, P6, the view entry, the entry's row
+    // masses and α, the two α rows drawn and β.
+    constexpr size_t kStages = 5;
+    static_assert(kBlock <= 4, "selected_corners() takes 4 states at most");
+    SampleState ring[kStages][kBlock];
+    const MlvqGrid& grid = m_books->grid;
+    auto p6 = [this](const Selection& s) -> const IndexScale& {
+        return m_index.p6[size_t(s.y) * size_t(m_index.width) + size_t(s.x)];
+    };
+    pipeline<kStages>(queries.size(), [&](size_t stage, size_t first, size_t count, size_t slot) {
+        const StochasticSampleQuery* q = queries.data() + first;
+        SampleState* s = ring[slot];
+        switch (stage) {
+            case 0: {
+                Vec3 wo[kBlock];
+                ViewLookup view[kBlock];
+                for (size_t i = 0; i < count; ++i) wo[i] = q[i].wo;
+                lookup_views(grid, wo, count, view);
+                for (size_t i = 0; i < count; ++i) {
+                    const Selection sel =
+                        select_view(q[i].uv, view[i].weights, filter_number(q[i].u));
+                    sample_selected_begin(sel, q[i].uv, q[i].wo, view[i], q[i].xi1, q[i].xi2, s[i]);
+                    __builtin_prefetch(&p6(sel));
+                }
+                break;
+            }
+            case 1:
+                for (size_t i = 0; i < count; ++i) {
+                    const Selection& sel = s[i].selection;
+                    __builtin_prefetch(m_decoded->views(p6(sel).index) + sel.view);
+                }
+                break;
+            case 2:
+                for (size_t i = 0; i < count; ++i) {
+                    gather_selected(s[i].selection, s[i].mix.g);
+                    const float* rows = m_decoded->rows(s[i].mix.g.index[0]);
+                    prefetch_range(rows, rows + grid.n_alpha);
+                }
+                break;
+            case 3:
+                for (size_t i = 0; i < count; ++i) {
+                    sample_mixture(s[i]);
+                    sample_alpha(s[i]);
+                    const DecodedBooks::Sample* f = s[i].mix.g.entry[0];
+                    prefetch_range(f + s[i].i0 * grid.n_beta, f + (s[i].i0 + 2) * grid.n_beta - 1);
+                }
+                break;
+            default:
+                for (size_t i = 0; i < count; ++i) sample_beta(s[i]);
+                selected_corners(s, count);
+                for (size_t i = 0; i < count; ++i) {
+                    sample_finish(s[i]);
+                    out[first + i] = s[i].out;
+                }
+        }
+    });
 }
 
 }  // namespace mlvq

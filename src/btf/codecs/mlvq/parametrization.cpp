@@ -111,21 +111,60 @@ AxisWeights periodic_axis(double x, int n) {
     if (n == 1) return {{0, 0}, {1.0f, 0.0f}};
     if (!std::isfinite(x)) x = 0;
     const double f = std::floor(x);
-    // The evaluator's φv is in [0, n]: an integer remainder there, fmod (slow) beyond.
-    int i0 = f >= 0 && f <= 2.0 * n ? static_cast<int>(f) % n
-                                    : static_cast<int>(std::fmod(f, double(n)));
+    // The evaluator's φv is in [0, n]: a subtraction or two there (not an integer division,
+    // tens of cycles), fmod (slow) beyond.
+    int i0;
+    if (f >= 0 && f <= 2.0 * n) {
+        i0 = static_cast<int>(f);
+        if (i0 >= n) i0 -= n;
+        if (i0 >= n) i0 -= n;
+    } else {
+        i0 = static_cast<int>(std::fmod(f, double(n)));
+    }
     if (i0 < 0) i0 += n;
     if (i0 >= n) i0 -= n;
     const float w1 = static_cast<float>(std::clamp(x - f, 0.0, 1.0));
-    return {{i0, (i0 + 1) % n}, {1.0f - w1, w1}};
+    return {{i0, i0 + 1 == n ? 0 : i0 + 1}, {1.0f - w1, w1}};
+}
+
+void light_axes(const MlvqGrid& g, double alpha, double u, MlvqWeights& w) {
+    w.alpha = clamped_axis((alpha + kPi / 2) / kPi * (g.n_alpha - 1), g.n_alpha);
+    w.beta = clamped_axis((u + 1) / 2 * (g.n_beta - 1), g.n_beta);
+}
+
+void view_axes(const MlvqGrid& g, double theta, double phi, MlvqWeights& w) {
+    w.theta_v = clamped_axis(theta / (kPi / 2) * (g.n_theta_v - 1), g.n_theta_v);
+    w.phi_v = periodic_axis(phi / (2 * kPi) * g.n_phi_v, g.n_phi_v);
+}
+
+// The axis weights of lookup_views() and lookup_lights(): the fractional index by a
+// multiplication where weights_of() divides (a division's latency is several multiplications'),
+// so that an index may differ from lookup()'s in its last bit.
+struct AxisScales {
+    double alpha, beta, theta, phi;
+    explicit AxisScales(const MlvqGrid& g)
+        : alpha((g.n_alpha - 1) * (1 / kPi)),
+          beta(0.5 * (g.n_beta - 1)),
+          theta((g.n_theta_v - 1) * (2 / kPi)),
+          phi(g.n_phi_v * (0.5 / kPi)) {}
+};
+
+void view_axes_scaled(const MlvqGrid& g, const AxisScales& k, double theta, double phi,
+                      MlvqWeights& w) {
+    w.theta_v = clamped_axis(theta * k.theta, g.n_theta_v);
+    w.phi_v = periodic_axis(phi * k.phi, g.n_phi_v);
+}
+
+void light_axes_scaled(const MlvqGrid& g, const AxisScales& k, double alpha, double u,
+                       MlvqWeights& w) {
+    w.alpha = clamped_axis((alpha + kPi / 2) * k.alpha, g.n_alpha);
+    w.beta = clamped_axis((u + 1) * k.beta, g.n_beta);
 }
 
 MlvqWeights weights_of(const MlvqGrid& g, double alpha, double u, double theta, double phi) {
     MlvqWeights w;
-    w.alpha = clamped_axis((alpha + kPi / 2) / kPi * (g.n_alpha - 1), g.n_alpha);
-    w.beta = clamped_axis((u + 1) / 2 * (g.n_beta - 1), g.n_beta);
-    w.theta_v = clamped_axis(theta / (kPi / 2) * (g.n_theta_v - 1), g.n_theta_v);
-    w.phi_v = periodic_axis(phi / (2 * kPi) * g.n_phi_v, g.n_phi_v);
+    light_axes(g, alpha, u, w);
+    view_axes(g, theta, phi, w);
     return w;
 }
 
@@ -206,10 +245,34 @@ Vec3 direction_from_onion_u(double alpha, double sin_beta, double phi_v) {
     return direction_from_onion_u(alpha, sin_beta, OnionFrame(phi_v));
 }
 
+void sin_cos_half_pi(double a, double& sin_a, double& cos_a) {
+    if (!(std::abs(a) <= kPi / 2 + 1e-9)) {
+        sin_a = std::sin(a), cos_a = std::cos(a);
+        return;
+    }
+    // Half angle h, |h| ≤ π/4: Taylor series of sin h to h¹⁵ and of cos h to h¹⁶ (the next
+    // terms are below 5e-17), then the double-angle formulas; the cosine as a product, which
+    // keeps it accurate near ±π/2 where it vanishes.
+    const double h = 0.5 * a, t = h * h;
+    double ps = -1.0 / 1307674368000, pc = 1.0 / 20922789888000;
+    ps = ps * t + 1.0 / 6227020800, pc = pc * t - 1.0 / 87178291200;
+    ps = ps * t - 1.0 / 39916800, pc = pc * t + 1.0 / 479001600;
+    ps = ps * t + 1.0 / 362880, pc = pc * t - 1.0 / 3628800;
+    ps = ps * t - 1.0 / 5040, pc = pc * t + 1.0 / 40320;
+    ps = ps * t + 1.0 / 120, pc = pc * t - 1.0 / 720;
+    ps = ps * t - 1.0 / 6, pc = pc * t + 1.0 / 24;
+    pc = pc * t - 0.5;
+    const double sh = h + h * t * ps, ch = 1 + t * pc;
+    sin_a = 2 * sh * ch;
+    cos_a = (ch - sh) * (ch + sh);
+}
+
 Vec3 direction_from_onion_u(double alpha, double sin_beta, const OnionFrame& f) {
     const double u = std::clamp(sin_beta, -1.0, 1.0);
     const double cb = std::sqrt(std::max(0.0, 1 - u * u));
-    return f.e_beta * u + f.e_alpha * (std::sin(alpha) * cb) + f.n * (std::cos(alpha) * cb);
+    double sa, ca;
+    sin_cos_half_pi(alpha, sa, ca);
+    return f.e_beta * u + f.e_alpha * (sa * cb) + f.n * (ca * cb);
 }
 
 Vec3 direction_from_onion(const OnionAngles& angles, double phi_v) {
@@ -242,7 +305,9 @@ MlvqWeights lookup(const MlvqGrid& grid, const MlvqCoordinates& c) {
 ViewLookup lookup_view(const MlvqGrid& grid, const Vec3& wo) {
     double theta = 0, phi = 0, c = 1, s = 0;
     view_of_prepared(prepare(wo), theta, phi, c, s, true);
-    return {weights_of(grid, 0, 0, theta, phi), OnionFrame(c, s)};
+    ViewLookup out{{}, OnionFrame(c, s)};
+    view_axes(grid, theta, phi, out.weights);
+    return out;
 }
 
 MlvqWeights lookup(const MlvqGrid& grid, const Vec3& wi, const Vec3& wo) {
@@ -311,38 +376,57 @@ Lanes3 prepare(Lanes3 d, __m256d& regular) {
     return {_mm256_mul_pd(d.x, inv_len), _mm256_mul_pd(d.y, inv_len), _mm256_mul_pd(d.z, inv_len)};
 }
 
+// load3() of p[k … k + 3], lanes at n and beyond holding copies of p[n − 1].
+Lanes3 load3_padded(const Vec3* p, size_t k, size_t n) {
+    const Vec3 v[4] = {p[k], p[std::min(k + 1, n - 1)], p[std::min(k + 2, n - 1)],
+                       p[std::min(k + 3, n - 1)]};
+    return load3(v);
+}
+
+// view_of_prepared() of four prepared view vectors; `regular` loses the lanes along the normal.
+void view_lanes(const Lanes3& o, __m256d& regular, __m256d& theta, __m256d& phi, __m256d& c,
+                __m256d& s) {
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1);
+    const __m256d two_pi = _mm256_set1_pd(2 * kPi);
+    const __m256d rho = _mm256_sqrt_pd(_mm256_fmadd_pd(o.x, o.x, _mm256_mul_pd(o.y, o.y)));
+    regular = _mm256_and_pd(regular, _mm256_cmp_pd(rho, zero, _CMP_GT_OQ));
+    const __m256d safe_rho = _mm256_blendv_pd(one, rho, regular);
+    theta = fast_atan2(safe_rho, o.z);
+    phi = fast_atan2(o.y, _mm256_blendv_pd(one, o.x, regular));
+    phi = _mm256_add_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, zero, _CMP_LT_OQ)));
+    phi = _mm256_sub_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, two_pi, _CMP_GE_OQ)));
+    const __m256d inv_rho = _mm256_div_pd(one, safe_rho);
+    c = _mm256_mul_pd(o.x, inv_rho), s = _mm256_mul_pd(o.y, inv_rho);
+}
+
+// onion_of_prepared() of four prepared light vectors in the frames (c, s); `regular` loses the
+// lanes at a pole.
+void onion_lanes(const Lanes3& i, __m256d c, __m256d s, __m256d& regular, __m256d& alpha,
+                 __m256d& u) {
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1);
+    u = _mm256_min_pd(
+        one, _mm256_max_pd(_mm256_set1_pd(-1), _mm256_fmsub_pd(c, i.y, _mm256_mul_pd(s, i.x))));
+    const __m256d a = _mm256_fnmsub_pd(c, i.x, _mm256_mul_pd(s, i.y));  // −c·x − s·y
+    // α is undefined at the poles (a = z = 0): the scalar path returns 0 there.
+    const __m256d sign = _mm256_set1_pd(-0.0);
+    regular = _mm256_and_pd(
+        regular, _mm256_cmp_pd(_mm256_max_pd(_mm256_andnot_pd(sign, a), i.z), zero, _CMP_GT_OQ));
+    alpha = fast_atan2(a, _mm256_blendv_pd(one, i.z, regular));
+}
+
 }  // namespace
 #endif
 
 void lookup(const MlvqGrid& grid, const Vec3* wi, const Vec3* wo, size_t n, MlvqWeights* out) {
     size_t k = 0;
 #ifdef __AVX2__
-    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1);
-    const __m256d two_pi = _mm256_set1_pd(2 * kPi);
     for (; k + 4 <= n; k += 4) {
         __m256d regular = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
         const Lanes3 o = prepare(load3(wo + k), regular);
         const Lanes3 i = prepare(load3(wi + k), regular);
-        // view_of_prepared()
-        const __m256d rho = _mm256_sqrt_pd(_mm256_fmadd_pd(o.x, o.x, _mm256_mul_pd(o.y, o.y)));
-        regular = _mm256_and_pd(regular, _mm256_cmp_pd(rho, zero, _CMP_GT_OQ));
-        const __m256d safe_rho = _mm256_blendv_pd(one, rho, regular);
-        const __m256d theta = fast_atan2(safe_rho, o.z);
-        __m256d phi = fast_atan2(o.y, _mm256_blendv_pd(one, o.x, regular));
-        phi = _mm256_add_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, zero, _CMP_LT_OQ)));
-        phi = _mm256_sub_pd(phi, _mm256_and_pd(two_pi, _mm256_cmp_pd(phi, two_pi, _CMP_GE_OQ)));
-        const __m256d inv_rho = _mm256_div_pd(one, safe_rho);
-        const __m256d c = _mm256_mul_pd(o.x, inv_rho), s = _mm256_mul_pd(o.y, inv_rho);
-        // onion_of_prepared()
-        const __m256d u = _mm256_min_pd(
-            one, _mm256_max_pd(_mm256_set1_pd(-1), _mm256_fmsub_pd(c, i.y, _mm256_mul_pd(s, i.x))));
-        const __m256d a = _mm256_fnmsub_pd(c, i.x, _mm256_mul_pd(s, i.y));  // −c·x − s·y
-        // α is undefined at the poles (a = z = 0): the scalar path returns 0 there.
-        const __m256d sign = _mm256_set1_pd(-0.0);
-        regular = _mm256_and_pd(
-            regular,
-            _mm256_cmp_pd(_mm256_max_pd(_mm256_andnot_pd(sign, a), i.z), zero, _CMP_GT_OQ));
-        const __m256d alpha = fast_atan2(a, _mm256_blendv_pd(one, i.z, regular));
+        __m256d theta, phi, c, s, alpha, u;
+        view_lanes(o, regular, theta, phi, c, s);
+        onion_lanes(i, c, s, regular, alpha, u);
         alignas(32) double l_alpha[4], l_u[4], l_theta[4], l_phi[4];
         _mm256_store_pd(l_alpha, alpha);
         _mm256_store_pd(l_u, u);
@@ -356,6 +440,80 @@ void lookup(const MlvqGrid& grid, const Vec3* wi, const Vec3* wo, size_t n, Mlvq
     }
 #endif
     for (; k < n; ++k) out[k] = lookup(grid, wi[k], wo[k]);
+}
+
+void lookup_views(const MlvqGrid& grid, const Vec3* wo, size_t n, ViewLookup* out) {
+    const AxisScales scales(grid);
+    // A view the vector lanes leave out (not a direction, along the normal): the scalar angles.
+    auto scalar = [&](const Vec3& d, ViewLookup& v) {
+        double theta = 0, phi = 0, c = 1, s = 0;
+        view_of_prepared(prepare(d), theta, phi, c, s, true);
+        v.weights = {};
+        view_axes_scaled(grid, scales, theta, phi, v.weights);
+        v.frame = OnionFrame(c, s);
+    };
+#ifdef __AVX2__
+    for (size_t k = 0; k < n; k += 4) {
+        __m256d regular = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        __m256d theta, phi, c, s;
+        view_lanes(prepare(load3_padded(wo, k, n), regular), regular, theta, phi, c, s);
+        alignas(32) double l_theta[4], l_phi[4], l_c[4], l_s[4];
+        _mm256_store_pd(l_theta, theta);
+        _mm256_store_pd(l_phi, phi);
+        _mm256_store_pd(l_c, c);
+        _mm256_store_pd(l_s, s);
+        const int mask = _mm256_movemask_pd(regular);
+        for (size_t lane = 0; lane < 4 && k + lane < n; ++lane) {
+            ViewLookup& v = out[k + lane];
+            if (mask >> lane & 1) {
+                v.weights = {};
+                view_axes_scaled(grid, scales, l_theta[lane], l_phi[lane], v.weights);
+                v.frame = OnionFrame(l_c[lane], l_s[lane]);
+            } else {
+                scalar(wo[k + lane], v);
+            }
+        }
+    }
+#else
+    for (size_t k = 0; k < n; ++k) scalar(wo[k], out[k]);
+#endif
+}
+
+void lookup_lights(const MlvqGrid& grid, const Vec3* wi, const ViewLookup* view, size_t n,
+                   MlvqWeights* out) {
+    const AxisScales scales(grid);
+    // OnionFrame(c, s) holds e_β = (−s, c, 0): c and s come back exactly.
+    auto cos_sin = [&](size_t k, double& c, double& s) {
+        c = view[k].frame.e_beta.y, s = -view[k].frame.e_beta.x;
+    };
+#ifdef __AVX2__
+    for (size_t k = 0; k < n; k += 4) {
+        alignas(32) double l_c[4], l_s[4];
+        for (size_t lane = 0; lane < 4; ++lane)
+            cos_sin(std::min(k + lane, n - 1), l_c[lane], l_s[lane]);
+        __m256d regular = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        __m256d alpha, u;
+        onion_lanes(prepare(load3_padded(wi, k, n), regular), _mm256_load_pd(l_c),
+                    _mm256_load_pd(l_s), regular, alpha, u);
+        alignas(32) double l_alpha[4], l_u[4];
+        _mm256_store_pd(l_alpha, alpha);
+        _mm256_store_pd(l_u, u);
+        const int mask = _mm256_movemask_pd(regular);
+        for (size_t lane = 0; lane < 4 && k + lane < n; ++lane) {
+            if (!(mask >> lane & 1))  // not a direction, or at a pole of the frame
+                onion_of_prepared(prepare(wi[k + lane]), l_c[lane], l_s[lane], l_alpha[lane],
+                                  l_u[lane], true);
+            light_axes_scaled(grid, scales, l_alpha[lane], l_u[lane], out[k + lane]);
+        }
+    }
+#else
+    for (size_t k = 0; k < n; ++k) {
+        double c, s, alpha, u;
+        cos_sin(k, c, s);
+        onion_of_prepared(prepare(wi[k]), c, s, alpha, u, true);
+        light_axes_scaled(grid, scales, alpha, u, out[k]);
+    }
+#endif
 }
 
 float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* values) {

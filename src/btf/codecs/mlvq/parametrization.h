@@ -178,6 +178,10 @@ Vec3 direction_from_onion(const OnionAngles& angles, double phi_v);
 Vec3 direction_from_onion_u(double alpha, double sin_beta, double phi_v);
 /// The same in a frame built beforehand.
 Vec3 direction_from_onion_u(double alpha, double sin_beta, const OnionFrame& frame);
+/// sin α and cos α, within 4e-16 of libm's for |α| ≤ π/2 (the range of the slices: a polynomial
+/// in place of libm's sincos, which took ~4 % of a stochastic sample's time in a profile);
+/// libm's beyond.
+void sin_cos_half_pi(double alpha, double& sin_alpha, double& cos_alpha);
 
 /// A (light, view) pair in grid coordinates (radians).
 struct MlvqCoordinates {
@@ -227,6 +231,18 @@ ViewLookup lookup_view(const MlvqGrid& grid, const Vec3& wo);
 /// scalar path for directions that need its conventions: zero, not finite, a view along the
 /// normal, a light at a pole); the weights agree with the scalar ones to within 1e-6.
 void lookup(const MlvqGrid& grid, const Vec3* wi, const Vec3* wo, size_t n, MlvqWeights* out);
+/// lookup_view(grid, wo[k]) for k < n, four at a time with AVX2 where the build has it (weights
+/// and frames within 1e-6 of the scalar ones). Unlike lookup() above, every direction goes
+/// through the same code, those of a last partial group too (its free lanes hold copies of its
+/// last direction): a direction's lookup does not depend on n or on its place, so one query
+/// (n = 1) and a batch agree bit for bit, which the stochastic filter's batches rely on.
+void lookup_views(const MlvqGrid& grid, const Vec3* wo, size_t n, ViewLookup* out);
+/// The light part of lookup(grid, wi[k], ωo) for k < n, ωo's onion frame given by view[k]
+/// (lookup_views()): sets out[k].alpha and .beta and leaves the rest of out[k] as it is. One
+/// atan2 per light where lookup() takes three; independent of n and of the place as
+/// lookup_views() is.
+void lookup_lights(const MlvqGrid& grid, const Vec3* wi, const ViewLookup* view, size_t n,
+                   MlvqWeights* out);
 /// The multilinear reconstruction Σ weight · values[sample] over the 16 corners; `values` holds
 /// grid.samples() values of one channel.
 float reconstruct(const MlvqGrid& grid, const MlvqWeights& w, const float* values);

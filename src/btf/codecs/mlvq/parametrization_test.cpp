@@ -342,6 +342,78 @@ TEST(MlvqLookup, BatchEqualsOneByOne) {
     }
 }
 
+// lookup_views() and lookup_lights(): a direction's lookup is the same, bit for bit, alone
+// (n = 1) as at any place of a batch (what the stochastic filter's batches rely on), and it is
+// lookup()'s up to the rounding of the vector path, special directions included.
+TEST(MlvqLookup, ViewAndLightBatchesDoNotDependOnThePlace) {
+    const MlvqGrid g;
+    std::mt19937_64 rng(8);
+    std::uniform_real_distribution<double> uni(-1, 1);
+    const std::vector<Vec3> special = {{0, 0, 0}, {0, 0, -1},     {NAN, 0, 1},
+                                       {0, 0, 1}, {-0.0, 0.0, 1}, {-1, -0.0, 0},
+                                       {0, 1, 0}, {0, 0, NAN},    {1e300, 1e300, 1}};
+    std::vector<Vec3> wi, wo;
+    for (int n = 0; n < 1001; ++n) {  // a partial last group
+        wi.push_back({uni(rng), uni(rng), uni(rng)});
+        wo.push_back({uni(rng), uni(rng), uni(rng)});
+        if (n % 7 == 0) wi.back() = special[size_t(n / 7) % special.size()];
+        if (n % 5 == 0) wo.back() = special[size_t(n / 5) % special.size()];
+        if (n % 11 == 0) {  // the light at a pole of the view's frame
+            const double phi = uni(rng) * kPi;
+            wo.back() = Direction{radians(40), phi}.vector();
+            wi.back() = Direction{kPi / 2, phi - kPi / 2}.vector();
+        }
+    }
+    std::vector<ViewLookup> views(wo.size());
+    std::vector<MlvqWeights> lights(wi.size());
+    lookup_views(g, wo.data(), wo.size(), views.data());
+    lookup_lights(g, wi.data(), views.data(), wi.size(), lights.data());
+    std::vector<float> values(size_t(g.samples()));
+    for (float& v : values) v = float(uni(rng));
+    for (int p = 0; p < g.n_phi_v; ++p)
+        for (int t = 0; t < g.n_theta_v; ++t)
+            for (int i = 0; i < g.n_alpha; ++i)
+                for (int j : {0, g.n_beta - 1})
+                    values[size_t(g.index(p, t, i, j))] = values[size_t(g.index(p, t, 0, j))];
+    auto same = [](const AxisWeights& a, const AxisWeights& b) {
+        return a.index == b.index && a.weight == b.weight;
+    };
+    for (size_t k = 0; k < wi.size(); ++k) {
+        ViewLookup view;
+        MlvqWeights light;
+        lookup_views(g, &wo[k], 1, &view);
+        lookup_lights(g, &wi[k], &view, 1, &light);
+        EXPECT_TRUE(same(view.weights.theta_v, views[k].weights.theta_v)) << k;
+        EXPECT_TRUE(same(view.weights.phi_v, views[k].weights.phi_v)) << k;
+        EXPECT_EQ(view.frame.e_beta, views[k].frame.e_beta) << k;
+        EXPECT_TRUE(same(light.alpha, lights[k].alpha)) << k;
+        EXPECT_TRUE(same(light.beta, lights[k].beta)) << k;
+        MlvqWeights w = views[k].weights;
+        w.alpha = lights[k].alpha;
+        w.beta = lights[k].beta;
+        const MlvqWeights scalar = lookup(g, wi[k], wo[k]);
+        EXPECT_NEAR(reconstruct(g, w, values.data()), reconstruct(g, scalar, values.data()), 1e-5)
+            << "query " << k;
+        const ViewLookup scalar_view = lookup_view(g, wo[k]);
+        expect_near(views[k].frame.e_beta, scalar_view.frame.e_beta, 1e-12);
+    }
+}
+
+TEST(MlvqMapping, SinCosOfTheSlices) {
+    double worst = 0;
+    for (int i = 0; i <= 100000; ++i) {
+        const double a = -kPi / 2 + kPi * i / 100000;
+        double s, c;
+        sin_cos_half_pi(a, s, c);
+        worst = std::max({worst, std::abs(s - std::sin(a)), std::abs(c - std::cos(a))});
+    }
+    EXPECT_LT(worst, 5e-16);
+    double s, c;
+    sin_cos_half_pi(3.0, s, c);  // outside: libm
+    EXPECT_EQ(s, std::sin(3.0));
+    EXPECT_EQ(c, std::cos(3.0));
+}
+
 TEST(MlvqLookup, SampleDirectionsHaveWeightOneOnThemselves) {
     for (const MlvqGrid& g : {MlvqGrid{}, MlvqGrid{5, 7, 4, 3}, MlvqGrid{4, 3, 2, 1}}) {
         const std::vector<float> values = pole_consistent_values(g, 5);
