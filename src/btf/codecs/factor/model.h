@@ -169,12 +169,24 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
 /// the problem for inconsistent headers or section sizes.
 Model from_package(const Package& package);
 
+/// How a FactorMaterial keeps the rows of its factors in memory.
+enum class RowStorage {
+    /// IEEE half floats when every factor value is one (the factors of an f16 package, of a
+    /// UBO2014 file of half floats), which halves the memory a query touches without changing a
+    /// value; float32 otherwise.
+    kAuto,
+    kFloat,  ///< float32 always (the evaluator before half rows; for comparison)
+};
+
 /// The evaluator: eval() interpolates like btf::lookup6d (bilinear in space × ≤3 views × ≤3
 /// lights), accumulating the angular and the spatial weights on the factors first
 /// (a = Σ w_pair a(row), b = Σ w_texel b(texel), value = a · b) with vectorized component loops.
+/// eval_sample() and the stochastic filter (one texel row and one (view, light) row per query)
+/// are one dot product of length K per channel; the batch calls prefetch the rows of later
+/// queries while computing the current one.
 class FactorMaterial final : public Material {
   public:
-    explicit FactorMaterial(Model model);
+    explicit FactorMaterial(Model model, RowStorage rows = RowStorage::kAuto);
     ~FactorMaterial() override;
 
     int width() const override { return m_model.width; }
@@ -186,13 +198,30 @@ class FactorMaterial final : public Material {
     /// eval() for many queries (out.size() == queries.size()); consecutive queries with the same
     /// directions reuse the angular accumulation.
     void eval_batch(std::span<const Query> queries, std::span<Rgb> out) const override;
+    /// The stochastic filter for many queries: exactly the values of ShadingPoint(…,
+    /// Filter::kStochastic, u).eval(wi) one by one, with the rows of later queries prefetched.
+    void eval_stochastic_batch(std::span<const StochasticQuery> queries,
+                               std::span<Rgb> out) const override;
     /// The same value as eval() computed in plain scalar code through lookup6d and
-    /// eval_sample(): the reference the vectorized path is tested against.
+    /// eval_sample_reference(): the reference the vectorized path is tested against.
     Rgb eval_reference(const Uv& uv, const Vec3& wi, const Vec3& wo) const;
+    /// eval_sample() in plain scalar code, component by component (the reference of the
+    /// vectorized lookup). Indices must be in range.
+    Rgb eval_sample_reference(int x, int y, int view, int light) const;
 
     const Model& model() const { return m_model; }
     /// Components in use per block (after a prefix: fewer).
     int total_components() const;
+    /// True when the rows are kept in IEEE half floats (RowStorage::kAuto on exact halves).
+    bool half_rows() const;
+
+  protected:
+    /// Material::select() exactly, through this material's own view interpolator.
+    Selection select(const Uv& uv, const Vec3& wo, double u) const override;
+    /// Material::eval_selected() exactly (the light drawn by pick() from the barycentric weights
+    /// of wi, then the vectorized eval_sample()), without the virtual calls and range checks.
+    Rgb eval_selected(const Selection& s, const Uv& uv, const Vec3& wo,
+                      const Vec3& wi) const override;
 
   private:
     struct Impl;
