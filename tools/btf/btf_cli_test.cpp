@@ -512,28 +512,37 @@ TEST_F(BtfCli, BenchMeasuresEvalAndSampleOfAnyMaterial) {
               0);
     ASSERT_EQ(run("compress " + h5 + " --codec fmf --components 3 --no-error -o " + pkg).code, 0);
     ASSERT_EQ(run("convert " + h5 + " " + btf + " --components 3").code, 0);
-    for (const std::string what : {"eval", "sample"})
+    for (const std::string what : {"eval", "sample", "eval-sample"})
         for (const std::string& file : {pkg, btf})
-            for (const std::string mode : {"", " --coherent"}) {
-                SCOPED_TRACE(what + " " + file + mode);
-                const CliResult r = run("-q bench " + what + " " + file +
-                                        " --queries 5000 --repeat 2 --threads 2 --json" + mode);
-                ASSERT_EQ(r.code, 0) << r.output;
-                const nlohmann::json j = nlohmann::json::parse(r.output);
-                EXPECT_EQ(j.at("queries"), 5000);
-                EXPECT_EQ(j.at("threads"), 2);
-                EXPECT_EQ(j.at("repeat"), 2);
-                EXPECT_EQ(j.at("mode"), mode.empty() ? "random" : "coherent");
-                EXPECT_GT(j.at(what == "eval" ? "evals_per_s" : "samples_per_s").get<double>(), 0);
-                EXPECT_GT(j.at("checksum").get<double>(), 0);
-            }
+            for (const std::string mode : {"", " --coherent"})
+                for (const std::string filter : {"stochastic", "deterministic"}) {
+                    if (what == "eval-sample" && (!mode.empty() || filter != "stochastic"))
+                        continue;  // no directions and no filter
+                    SCOPED_TRACE(what + " " + file + mode + " " + filter);
+                    const CliResult r =
+                        run("-q bench " + what + " " + file + " --filter " + filter +
+                            " --queries 5000 --repeat 2 --threads 2 --json" + mode);
+                    ASSERT_EQ(r.code, 0) << r.output;
+                    const nlohmann::json j = nlohmann::json::parse(r.output);
+                    EXPECT_EQ(j.at("queries"), 5000);
+                    EXPECT_EQ(j.at("threads"), 2);
+                    EXPECT_EQ(j.at("repeat"), 2);
+                    EXPECT_EQ(j.at("mode"), mode.empty() ? "random" : "coherent");
+                    EXPECT_EQ(j.at("filter"), what == "eval-sample" ? "none" : filter);
+                    EXPECT_GT(
+                        j.at(what == "sample" ? "samples_per_s" : "evals_per_s").get<double>(), 0);
+                    EXPECT_GT(j.at("checksum").get<double>(), 0);
+                }
     const CliResult line = run("-q bench eval " + pkg + " --queries 1000 --repeat 1");
     ASSERT_EQ(line.code, 0) << line.output;
     EXPECT_TRUE(std::regex_search(
         line.output,
-        std::regex(
-            R"(bench\.btfpkg: eval [0-9.]+ M/s \(random, 1 thread, 1000 queries, best of 1\)\n$)")))
+        std::regex(R"(bench\.btfpkg: eval [0-9.]+ M/s \(random, filter stochastic, 1 thread, 1000 )"
+                   R"(queries, best of 1\)\n$)")))
         << line.output;
+    const CliResult bad = run("bench eval " + pkg + " --filter bilinear");
+    EXPECT_NE(bad.code, 0);
+    EXPECT_THAT(bad.output, testing::HasSubstr("--filter"));
     const CliResult missing = run("bench eval " + path("none.btfpkg"));
     EXPECT_NE(missing.code, 0);
     EXPECT_THAT(missing.output, testing::HasSubstr("none.btfpkg: no such file"));
