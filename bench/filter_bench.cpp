@@ -1,0 +1,207 @@
+// Stochastic against deterministic filtering in the renderer at equal time (docs/benchmarks.md,
+// "Stochastic filtering"): for each package given, the demo scene of scripts/demo.sh (a sphere
+// and a cloth drape of the material on a grey floor under the procedural sky, path tracing with
+// MIS, maximum depth 6):
+//
+//  1. paths per second at 512² on all cores with each filter (after a warm-up pass that builds
+//     the generic sampler's tables);
+//  2. a reference rendered with the deterministic filter at --reference-spp samples per pixel
+//     (seed 12345): the image both filters converge to (for codecs whose decoding after
+//     interpolation is linear, as fmf and mlvq with YCbCr);
+//  3. for each T of --seconds, one render of T seconds with each filter (seed 1), and the RMSE
+//     of linear radiance against the reference over the pixels that see a BTF object, the
+//     ratio deterministic / stochastic (> 1: stochastic is closer at equal time);
+//  4. the mean radiance over those pixels of the longest renders against the reference's, as a
+//     multiple of its standard error (RMSE / √(3 · pixels)): unbiased renders stay within a few.
+// Prints Markdown.
+//
+//   build/<dir>/filter_bench PACKAGE... [--size 256] [--seconds 5,20,60] [--reference-spp 1024]
+
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "btf/codecs/codec.h"
+#include "btf/render/renderer.h"
+
+using namespace btf;
+using render::BtfSurface;
+using render::DiffuseSurface;
+using render::EnvironmentLight;
+using render::EnvironmentMap;
+using render::Hit;
+using render::RenderOptions;
+using render::RenderResult;
+using render::Scene;
+using render::SceneObject;
+using render::Transform;
+
+namespace {
+
+// The demo scene of scripts/demo.sh, `width` pixels wide (3:2), the BTF on both objects.
+Scene demo_scene(std::shared_ptr<const Material> material, int width) {
+    Scene scene;
+    scene.camera.position = {0, 1.4, 4.2};
+    scene.camera.look_at = {0, 0.55, 0};
+    scene.camera.fov = 30;
+    scene.camera.width = width;
+    scene.camera.height = width * 2 / 3;
+    auto surface = std::make_shared<BtfSurface>(std::move(material));
+    SceneObject sphere;
+    sphere.name = "sphere";
+    sphere.mesh = render::make_sphere(0.55, 128);
+    render::transform(sphere.mesh, Transform::translate({-0.75, 0.55, 0}));
+    sphere.surface = surface;
+    sphere.uv = {6, 3, 0};
+    scene.add_object(std::move(sphere));
+    SceneObject drape;
+    drape.name = "cloth drape";
+    drape.mesh = render::make_cylinder(0.45, 1.2, 128);
+    render::transform(drape.mesh, Transform::translate({0.75, 0.6, 0}));
+    drape.surface = surface;
+    drape.uv = {5, 2, 0};
+    scene.add_object(std::move(drape));
+    SceneObject floor;
+    floor.name = "floor";
+    floor.mesh = render::make_plane(12, 12);
+    floor.surface = std::make_shared<DiffuseSurface>(Rgb{0.35f, 0.35f, 0.35f});
+    scene.add_object(std::move(floor));
+    const double el = radians(40), az = radians(60);
+    const Vec3 sun = {std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az)};
+    scene.add_light(std::make_shared<EnvironmentLight>(
+        std::make_shared<const EnvironmentMap>(EnvironmentMap::make_sky(1024, 512, sun))));
+    scene.commit();
+    return scene;
+}
+
+// Which pixels see a BTF object (object 0 or 1) through their centre.
+std::vector<bool> btf_mask(const Scene& scene) {
+    const render::Camera& c = scene.camera;
+    std::vector<bool> mask(size_t(c.width) * c.height);
+    for (int y = 0; y < c.height; ++y)
+        for (int x = 0; x < c.width; ++x) {
+            const Hit h = scene.intersect(c.ray(x + 0.5, y + 0.5));
+            mask[size_t(y) * c.width + x] = h.object == 0 || h.object == 1;
+        }
+    return mask;
+}
+
+struct Stats {
+    double rmse = 0, mean = 0, n = 0;
+};
+
+Stats compare(const Image& a, const Image& ref, const std::vector<bool>& mask) {
+    double sum = 0, total = 0;
+    int64_t n = 0;
+    for (int y = 0; y < a.height(); ++y)
+        for (int x = 0; x < a.width(); ++x) {
+            if (!mask[size_t(y) * a.width() + x]) continue;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(a.at(x, y, c)) - ref.at(x, y, c);
+                sum += d * d;
+                total += a.at(x, y, c);
+            }
+            n += 3;
+        }
+    return {std::sqrt(sum / double(n)), total / double(n), double(n)};
+}
+
+RenderOptions options_for(Filter filter) {
+    RenderOptions o;
+    o.integrator.max_depth = 6;
+    o.integrator.filter = filter;
+    return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::vector<std::string> packages;
+    std::string seconds_text = "5,20,60";
+    int size = 256, reference_spp = 1024;
+    CLI::App app{"Stochastic against deterministic filtering in the renderer at equal time"};
+    app.add_option("packages", packages, "materials (any package or UBO2014 file)")->required();
+    app.add_option("--size", size, "image width for the RMSE measurements")->capture_default_str();
+    app.add_option("--seconds", seconds_text, "render times, comma-separated")
+        ->capture_default_str();
+    app.add_option("--reference-spp", reference_spp, "samples per pixel of the reference")
+        ->capture_default_str();
+    CLI11_PARSE(app, argc, argv);
+    std::vector<double> seconds;
+    {
+        std::stringstream in(seconds_text);
+        for (std::string s; std::getline(in, s, ',');) seconds.push_back(std::stod(s));
+    }
+    try {
+        std::vector<std::string> means;
+        std::printf(
+            "| material | paths/s at 512²: deterministic / stochastic | T | spp: deterministic / "
+            "stochastic | RMSE: deterministic | RMSE: stochastic | deterministic / stochastic "
+            "|\n|---|---|---|---|---|---|---|\n");
+        for (const std::string& path : packages) {
+            const std::shared_ptr<const Material> material(open_material(path));
+            const std::string name = std::filesystem::path(path).filename().string();
+            // Throughput at 512², after a warm-up pass (generic sampler tables, caches).
+            const Scene big = demo_scene(material, 512);
+            double rate[2];
+            for (int f = 0; f < 2; ++f) {
+                RenderOptions o =
+                    options_for(f == 0 ? Filter::kDeterministic : Filter::kStochastic);
+                o.spp = 1;
+                render::render(big, o);
+                o.spp = 4;
+                const RenderResult r = render::render(big, o);
+                rate[f] = double(r.paths()) / r.seconds;
+            }
+            const Scene scene = demo_scene(material, size);
+            const std::vector<bool> mask = btf_mask(scene);
+            RenderOptions ref_options = options_for(Filter::kDeterministic);
+            ref_options.spp = reference_spp;
+            ref_options.seed = 12345;
+            const Image reference = render::render(scene, ref_options).color;
+            Stats last[2];
+            for (const double t : seconds) {
+                Stats s[2];
+                int spp[2];
+                for (int f = 0; f < 2; ++f) {
+                    RenderOptions o =
+                        options_for(f == 0 ? Filter::kDeterministic : Filter::kStochastic);
+                    o.spp = 0;
+                    o.time_limit = t;
+                    const RenderResult r = render::render(scene, o);
+                    s[f] = compare(r.color, reference, mask);
+                    spp[f] = r.spp;
+                    last[f] = s[f];
+                }
+                std::printf(
+                    "| %s | %.2f M / %.2f M | %.0f s | %d / %d | %.4f | %.4f | **%.2f×** |\n",
+                    name.c_str(), rate[0] / 1e6, rate[1] / 1e6, t, spp[0], spp[1], s[0].rmse,
+                    s[1].rmse, s[0].rmse / s[1].rmse);
+                std::fflush(stdout);
+            }
+            const Stats ref = compare(reference, reference, mask);
+            std::string row = fmt::format("| {} | {:.5f} |", name, ref.mean);
+            for (int f = 0; f < 2; ++f) {
+                const double se = last[f].rmse / std::sqrt(last[f].n);
+                row += fmt::format(" {:.5f} ({:+.2f} SE) |", last[f].mean,
+                                   (last[f].mean - ref.mean) / se);
+            }
+            means.push_back(row);
+        }
+        std::printf(
+            "\n| material | mean radiance of the BTF pixels: reference | deterministic, %.0f s | "
+            "stochastic, %.0f s |\n|---|---|---|---|\n",
+            seconds.back(), seconds.back());
+        for (const std::string& row : means) std::printf("%s\n", row.c_str());
+        return 0;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "filter_bench: %s\n", e.what());
+        return 1;
+    }
+}
