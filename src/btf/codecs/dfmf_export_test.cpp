@@ -162,6 +162,9 @@ TEST(DfmfImport, TheModelOfAFactorizationIsItsValueAtEverySample) {
         // Through a package (float32 factors) as `btf convert` writes it.
         const factor::FactorMaterial material(
             factor::from_package(factor::to_package(model, "fmf", {}, factor::Quantization::kF32)));
+        // Relative to at least 1e-2: both sides sum the products of factors in floats, the
+        // evaluator in another order (vector lanes), and where these random factors cancel
+        // (products of ±0.25 summing to 1e-3) the orders differ by roundings of 1e-8.
         double worst = 0;
         for (int v = 0; v < f.sampling.num_views(); ++v)
             for (int l = 0; l < f.sampling.num_lights(); ++l)
@@ -172,7 +175,7 @@ TEST(DfmfImport, TheModelOfAFactorizationIsItsValueAtEverySample) {
                         const float w[3] = {want.r, want.g, want.b}, g[3] = {got.r, got.g, got.b};
                         for (int ch = 0; ch < 3; ++ch)
                             worst = std::max(worst, std::abs(double(g[ch]) - w[ch]) /
-                                                        std::max(1e-3, std::abs(double(w[ch]))));
+                                                        std::max(1e-2, std::abs(double(w[ch]))));
                     }
         EXPECT_LT(worst, 1e-5) << int(c.body) << " " << c.colour << " " << c.drr;
     }
