@@ -29,6 +29,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/render/renderer.h"
+#include "demo_scene.h"
 
 using namespace btf;
 using render::BtfSurface;
@@ -44,52 +45,9 @@ using render::Transform;
 
 namespace {
 
-// The demo scene of scripts/demo.sh, `width` pixels wide (3:2), the BTF on both objects.
-Scene demo_scene(std::shared_ptr<const Material> material, int width) {
-    Scene scene;
-    scene.camera.position = {0, 1.4, 4.2};
-    scene.camera.look_at = {0, 0.55, 0};
-    scene.camera.fov = 30;
-    scene.camera.width = width;
-    scene.camera.height = width * 2 / 3;
-    auto surface = std::make_shared<BtfSurface>(std::move(material));
-    SceneObject sphere;
-    sphere.name = "sphere";
-    sphere.mesh = render::make_sphere(0.55, 128);
-    render::transform(sphere.mesh, Transform::translate({-0.75, 0.55, 0}));
-    sphere.surface = surface;
-    sphere.uv = {6, 3, 0};
-    scene.add_object(std::move(sphere));
-    SceneObject drape;
-    drape.name = "cloth drape";
-    drape.mesh = render::make_cylinder(0.45, 1.2, 128);
-    render::transform(drape.mesh, Transform::translate({0.75, 0.6, 0}));
-    drape.surface = surface;
-    drape.uv = {5, 2, 0};
-    scene.add_object(std::move(drape));
-    SceneObject floor;
-    floor.name = "floor";
-    floor.mesh = render::make_plane(12, 12);
-    floor.surface = std::make_shared<DiffuseSurface>(Rgb{0.35f, 0.35f, 0.35f});
-    scene.add_object(std::move(floor));
-    const double el = radians(40), az = radians(60);
-    const Vec3 sun = {std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az)};
-    scene.add_light(std::make_shared<EnvironmentLight>(
-        std::make_shared<const EnvironmentMap>(EnvironmentMap::make_sky(1024, 512, sun))));
-    scene.commit();
-    return scene;
-}
-
-// Which pixels see a BTF object (object 0 or 1) through their centre.
-std::vector<bool> btf_mask(const Scene& scene) {
-    const render::Camera& c = scene.camera;
-    std::vector<bool> mask(size_t(c.width) * c.height);
-    for (int y = 0; y < c.height; ++y)
-        for (int x = 0; x < c.width; ++x) {
-            const Hit h = scene.intersect(c.ray(x + 0.5, y + 0.5));
-            mask[size_t(y) * c.width + x] = h.object == 0 || h.object == 1;
-        }
-    return mask;
+// The demo scene with the material's own importance sampling.
+Scene scene_of(std::shared_ptr<const Material> material, int width) {
+    return bench::demo_scene(std::move(material), render::SamplingMode::kMaterial, width);
 }
 
 struct Stats {
@@ -148,7 +106,7 @@ int main(int argc, char** argv) {
             const std::shared_ptr<const Material> material(open_material(path));
             const std::string name = std::filesystem::path(path).filename().string();
             // Throughput at 512², after a warm-up pass (generic sampler tables, caches).
-            const Scene big = demo_scene(material, 512);
+            const Scene big = scene_of(material, 512);
             double rate[2];
             for (int f = 0; f < 2; ++f) {
                 RenderOptions o =
@@ -159,8 +117,8 @@ int main(int argc, char** argv) {
                 const RenderResult r = render::render(big, o);
                 rate[f] = double(r.paths()) / r.seconds;
             }
-            const Scene scene = demo_scene(material, size);
-            const std::vector<bool> mask = btf_mask(scene);
+            const Scene scene = scene_of(material, size);
+            const std::vector<bool> mask = bench::btf_mask(scene);
             RenderOptions ref_options = options_for(Filter::kDeterministic);
             ref_options.spp = reference_spp;
             ref_options.seed = 12345;

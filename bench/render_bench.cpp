@@ -29,6 +29,7 @@
 #include "btf/io/package.h"
 #include "btf/render/renderer.h"
 #include "btf/synth/synth.h"
+#include "demo_scene.h"
 
 using namespace btf;
 using render::BtfSurface;
@@ -46,59 +47,14 @@ using render::Transform;
 
 namespace {
 
+using bench::btf_mask;
+using bench::demo_scene;
+
 std::shared_ptr<const Material> compress(const BtfSource& source, const std::string& codec,
                                          const Params& params) {
     Package package = find_codec(codec).encode(source, params);
     const std::vector<uint8_t> bytes = encode_package(package);
     return open_material(decode_package(bytes, codec + " package"));
-}
-
-// The demo scene of scripts/demo.sh, `width` pixels wide (3:2), the BTF on both objects.
-Scene demo_scene(std::shared_ptr<const Material> material, SamplingMode mode, int width) {
-    Scene scene;
-    scene.camera.position = {0, 1.4, 4.2};
-    scene.camera.look_at = {0, 0.55, 0};
-    scene.camera.fov = 30;
-    scene.camera.width = width;
-    scene.camera.height = width * 2 / 3;
-    auto surface = std::make_shared<BtfSurface>(material, mode);
-    SceneObject sphere;
-    sphere.name = "sphere";
-    sphere.mesh = render::make_sphere(0.55, 128);
-    render::transform(sphere.mesh, Transform::translate({-0.75, 0.55, 0}));
-    sphere.surface = surface;
-    sphere.uv = {6, 3, 0};
-    scene.add_object(std::move(sphere));
-    SceneObject drape;
-    drape.name = "cloth drape";
-    drape.mesh = render::make_cylinder(0.45, 1.2, 128);
-    render::transform(drape.mesh, Transform::translate({0.75, 0.6, 0}));
-    drape.surface = surface;
-    drape.uv = {5, 2, 0};
-    scene.add_object(std::move(drape));
-    SceneObject floor;
-    floor.name = "floor";
-    floor.mesh = render::make_plane(12, 12);
-    floor.surface = std::make_shared<DiffuseSurface>(Rgb{0.35f, 0.35f, 0.35f});
-    scene.add_object(std::move(floor));
-    const double el = radians(40), az = radians(60);
-    const Vec3 sun = {std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az)};
-    scene.add_light(std::make_shared<EnvironmentLight>(
-        std::make_shared<const EnvironmentMap>(EnvironmentMap::make_sky(1024, 512, sun))));
-    scene.commit();
-    return scene;
-}
-
-// Which pixels see a BTF object (object 0 or 1) through their centre.
-std::vector<bool> btf_mask(const Scene& scene) {
-    const Camera& c = scene.camera;
-    std::vector<bool> mask(size_t(c.width) * c.height);
-    for (int y = 0; y < c.height; ++y)
-        for (int x = 0; x < c.width; ++x) {
-            const Hit h = scene.intersect(c.ray(x + 0.5, y + 0.5));
-            mask[size_t(y) * c.width + x] = h.object == 0 || h.object == 1;
-        }
-    return mask;
 }
 
 double rmse(const Image& a, const Image& ref, const std::vector<bool>& mask) {
