@@ -32,7 +32,9 @@
 #include "btf/testing/sources.h"
 #include "btf/testing/support.h"
 
-namespace btf {
+// A namespace of its own: the unity build compiles this file with other tests of the codecs,
+// some of which have helpers of the same names (source(), cases()).
+namespace btf::factor_material_test {
 namespace {
 
 using factor::FactorMaterial;
@@ -50,7 +52,6 @@ struct Case {
     const FactorMaterial& factor() const { return dynamic_cast<const FactorMaterial&>(*material); }
 };
 
-// Through the package's bytes, as a file would open.
 // Views and lights at the same directions (as the UBO 81 × 81 of real files): the factor material
 // then looks the lights up in its view interpolator.
 const BtfSource& same_directions_source() {
@@ -61,6 +62,7 @@ const BtfSource& same_directions_source() {
     return *s;
 }
 
+// Through the package's bytes, as a file would open.
 std::shared_ptr<const Material> encoded(const Codec& codec, const Params& params,
                                         const BtfSource& from = source()) {
     Package package = codec.encode(from, params);
@@ -393,4 +395,4 @@ TEST(FactorMaterial, HalfRowsOnlyForHalfValues) {
 }
 
 }  // namespace
-}  // namespace btf
+}  // namespace btf::factor_material_test
