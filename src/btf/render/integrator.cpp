@@ -17,8 +17,10 @@ Rgb mul(const Rgb& a, const Rgb& b) {
     return {a.r * b.r, a.g * b.g, a.b * b.b};
 }
 
+// Nothing to carry. A stochastically filtered BTF term can be negative in every channel
+// (surface.cpp): it still counts, since the terms average to the filtered value.
 bool is_black(const Rgb& c) {
-    return c.r <= 0 && c.g <= 0 && c.b <= 0;
+    return c.r == 0 && c.g == 0 && c.b == 0;
 }
 
 // The weight of an emitter reached by a material-sampled ray whose light-sampling density for
@@ -120,7 +122,8 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         previous_position = hit.position;
         ray = scene.spawn(hit, wi);
         if (depth + 1 >= options.roulette_depth) {
-            const double q = std::min(0.95, double(std::max({beta.r, beta.g, beta.b})));
+            const double q = std::min(
+                0.95, double(std::max({std::abs(beta.r), std::abs(beta.g), std::abs(beta.b)})));
             if (rng.uniform() >= q) break;
             beta = beta * float(1 / q);
         }

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <memory>
 
+#include "btf/core/btf_lookup.h"
 #include "btf/render/renderer.h"
 #include "btf/render/scene_file.h"
 #include "btf/testing/function_material.h"
@@ -261,6 +262,88 @@ TEST(Render, SurfaceSamplingDensities) {
             // E[value / pdf] = ∫ value dω where pdf > 0.
             EXPECT_NEAR(weight_mean, value_integral, 0.02 * value_integral);
         }
+}
+
+// A BTF whose terms have both signs, as a truncated factorization's do: a Lambertian lobe times
+// `even` on the texels with x + y even and times `odd` on the others.
+class SignedTermsMaterial final : public Material {
+  public:
+    SignedTermsMaterial(float even, float odd) : m_even(even), m_odd(odd) {}
+    int width() const override { return 8; }
+    int height() const override { return 8; }
+    const Sampling& sampling() const override { return m_sampling; }
+    Rgb eval_sample(int x, int y, int, int light) const override {
+        const float sign = (x + y) % 2 == 0 ? m_even : m_odd;
+        return Rgb{1, 1, 1} * (sign * float(std::max(m_sampling.lights.vector(light).z, 0.0)));
+    }
+    Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override {
+        return lookup6d(uv, width(), height(), view_interpolator().weights(wo),
+                        light_interpolator().weights(wi), [&](int x, int y, int view, int light) {
+                            return eval_sample(x, y, view, light);
+                        });
+    }
+
+  private:
+    float m_even, m_odd;
+    Sampling m_sampling{DirectionSet::ubo81(), DirectionSet::ubo81()};
+};
+
+// A surface's values are signed with either filter, so the terms of a stochastic vertex average
+// to the deterministic value: clamping each term at zero would give the lobe times 1.5 here
+// instead of 1.
+TEST(Render, StochasticTermsKeepTheirSignAndAverageToTheFilteredValue) {
+    const BtfSurface surface(std::make_shared<SignedTermsMaterial>(3.0f, -1.0f));
+    const Vec3 wo = normalize(Vec3{0.1, 0.2, 0.9}), wi = normalize(Vec3{-0.3, 0.4, 0.7});
+    // Half-way between texel centres in both axes (the lobe times 1), and the centre of a texel
+    // with x + y odd (times −1).
+    for (const Uv& uv : {Uv{0.25, 0.5}, Uv{1.5 / 8, 0.5 / 8}}) {
+        const float expected =
+            surface.eval(surface.vertex(uv, wo, Filter::kDeterministic, 0), wi).g;
+        ASSERT_GT(std::abs(expected), 0.1f);
+        constexpr int kN = 4096;
+        double mean = 0;
+        int negative = 0;
+        for (int i = 0; i < kN; ++i) {
+            const Vertex v = surface.vertex(uv, wo, Filter::kStochastic, (i + 0.5) / kN);
+            const float term = surface.eval(v, wi).g;
+            negative += term < 0;
+            mean += term / kN;
+        }
+        EXPECT_GT(negative, expected > 0 ? kN / 4 : kN - 1);
+        EXPECT_NEAR(mean, expected, 0.01 * std::abs(expected)) << "uv " << uv.u << ", " << uv.v;
+    }
+}
+
+// What render() clamps is the pixel: a plane whose BTF is negative everywhere renders black with
+// either filter, and the positive plane beside it does not.
+TEST(Render, PixelsAreClampedAtZeroNotTerms) {
+    for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
+        Scene scene;
+        scene.camera = looking_down(8);
+        TriangleMesh left = make_plane(2, 4), right = make_plane(2, 4);
+        transform(left, Transform::translate({-1, 0, 0}));
+        transform(right, Transform::translate({1, 0, 0}));
+        scene.add_object(object_of(
+            left, std::make_shared<BtfSurface>(std::make_shared<SignedTermsMaterial>(-1, -1))));
+        scene.add_object(object_of(
+            right, std::make_shared<BtfSurface>(std::make_shared<SignedTermsMaterial>(3, -1))));
+        scene.add_light(
+            std::make_shared<DirectionalLight>(normalize(Vec3{0.3, 1, 0.2}), Rgb{2, 2, 2}));
+        scene.commit();
+        RenderOptions options;
+        options.spp = 4;
+        options.integrator.filter = filter;
+        const Image image = render(scene, options).color;
+        // The planes meet at the centre of the view: four columns of pixels see each.
+        double half[2] = {0, 0};
+        for (int y = 0; y < 8; ++y)
+            for (int x = 0; x < 8; ++x) {
+                ASSERT_GE(image.at(x, y, 1), 0.0f) << "pixel " << x << ", " << y;
+                half[x / 4] += image.at(x, y, 1);
+            }
+        EXPECT_EQ(std::min(half[0], half[1]), 0.0) << to_string(filter);
+        EXPECT_GT(std::max(half[0], half[1]), 0.0) << to_string(filter);
+    }
 }
 
 TEST(Render, SameImageForAnyThreadCount) {

@@ -101,7 +101,10 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
     result.dropped = dropped.load();
     result.color = Image(width, height, 3);
     const double inv = pass > 0 ? 1.0 / pass : 0;
-    for (size_t i = 0; i < sum.size(); ++i) result.color.data()[i] = float(sum[i] * inv);
+    // A pixel's mean can be below zero where a compressed BTF rings below zero (surfaces return
+    // signed values so that the estimate stays unbiased): radiance is not negative.
+    for (size_t i = 0; i < sum.size(); ++i)
+        result.color.data()[i] = float(std::max(sum[i] * inv, 0.0));
     return result;
 }
 

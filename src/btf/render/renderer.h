@@ -26,7 +26,7 @@ struct RenderOptions {
 };
 
 struct RenderResult {
-    Image color;               ///< linear radiance, the mean of `spp` samples per pixel
+    Image color;  ///< linear radiance, the mean of `spp` samples per pixel, clamped at ≥ 0
     Image albedo, normal, uv;  ///< AOVs (when requested): first-hit albedo, world normal, uv
     int spp = 0;
     double seconds = 0;

@@ -39,9 +39,12 @@ Vertex BtfSurface::vertex(const Uv& uv, const Vec3& wo, Filter filter, double u)
 
 Rgb BtfSurface::eval(const Vertex& v, const Vec3& wi) const {
     if (wi.z <= 0 || v.wo.z <= 0) return {};
-    // Compressed values can dip below zero (a truncated factorization rings); negative radiance
-    // has no physical meaning and would make a pixel's running mean noisy around zero.
-    return clamp_black(v.btf.eval(wi));
+    // Signed: compressed values can dip below zero (a truncated factorization rings), and a
+    // value is one term of a pixel's estimate, which render() clamps at zero when it is done.
+    // Clamping here instead would bias a stochastic vertex, whose one term can be negative where
+    // the filtered value is not: E[max(x, 0)] ≥ max(E[x], 0) (+0.5 % on the fmf demo scene,
+    // docs/benchmarks.md), and would make the two filters converge to different images.
+    return v.btf.eval(wi);
 }
 
 LightSample BtfSurface::sample(const Vertex& v, double xi1, double xi2) const {
@@ -55,10 +58,7 @@ LightSample BtfSurface::sample(const Vertex& v, double xi1, double xi2) const {
         const LightSample s = m_material->generic_sampler().sample(v.uv, v.wo, xi1, xi2);
         return finish(s.wi, s.pdf, eval(v, s.wi));
     }
-    LightSample s = v.btf.sample(xi1, xi2);
-    s.value = clamp_black(s.value);
-    s.weight = clamp_black(s.weight);
-    return s;
+    return v.btf.sample(xi1, xi2);  // signed, as eval()
 }
 
 double BtfSurface::pdf(const Vertex& v, const Vec3& wi) const {

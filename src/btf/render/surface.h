@@ -62,7 +62,8 @@ class Surface {
 
 /// A BTF material. uv wraps (the material tiles); the object's uv scale and rotation are applied
 /// by the renderer before the lookup. Every call goes through the vertex's ShadingPoint, so a
-/// stochastic vertex evaluates, samples and reports densities for one selection.
+/// stochastic vertex evaluates, samples and reports densities for one selection. Values are
+/// signed (a compressed BTF can ring below zero; render() clamps the pixel, not the term).
 class BtfSurface final : public Surface {
   public:
     BtfSurface(std::shared_ptr<const Material> material,
