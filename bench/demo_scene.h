@@ -62,4 +62,26 @@ inline std::vector<bool> btf_mask(const btf::render::Scene& scene) {
     return mask;
 }
 
+/// Linear radiance of `image` against `reference` over the pixels of `mask` (btf_mask()): the
+/// RMSE, the mean of `image`, and how many values (3 per pixel) entered both.
+struct MaskedError {
+    double rmse = 0, mean = 0, values = 0;
+};
+inline MaskedError masked_error(const btf::Image& image, const btf::Image& reference,
+                                const std::vector<bool>& mask) {
+    double squares = 0, total = 0;
+    int64_t n = 0;
+    for (int y = 0; y < image.height(); ++y)
+        for (int x = 0; x < image.width(); ++x) {
+            if (!mask[size_t(y) * image.width() + x]) continue;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(image.at(x, y, c)) - reference.at(x, y, c);
+                squares += d * d;
+                total += image.at(x, y, c);
+            }
+            n += 3;
+        }
+    return {std::sqrt(squares / double(n)), total / double(n), double(n)};
+}
+
 }  // namespace btf::bench

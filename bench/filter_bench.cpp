@@ -3,15 +3,15 @@
 // and a cloth drape of the material on a grey floor under the procedural sky, path tracing with
 // MIS, maximum depth 6):
 //
-//  1. paths per second at 512² on all cores with each filter (after a warm-up pass that builds
-//     the generic sampler's tables);
-//  2. a reference rendered with the deterministic filter at --reference-spp samples per pixel
+//  1. a reference rendered with the deterministic filter at --reference-spp samples per pixel
 //     (seed 12345): the image both filters converge to (for codecs whose decoding after
-//     interpolation is linear, as fmf and mlvq with YCbCr);
-//  3. for each T of --seconds, one render of T seconds with each filter (seed 1), and the RMSE
-//     of linear radiance against the reference over the pixels that see a BTF object, the
-//     ratio deterministic / stochastic (> 1: stochastic is closer at equal time);
-//  4. the mean radiance over those pixels of the longest renders against the reference's, as a
+//     interpolation is linear, as fmf and mlvq with YCbCr), after a 1-spp pass with each filter
+//     that builds what is built on first use (the generic sampler's tables);
+//  2. for each T of --seconds, one render of T seconds with each filter (seed 1): its samples
+//     per pixel and paths per second (all cores), the RMSE of linear radiance against the
+//     reference over the pixels that see a BTF object, and the ratio deterministic / stochastic
+//     (> 1: stochastic is closer at equal time);
+//  3. the mean radiance over those pixels of the longest renders against the reference's, as a
 //     multiple of its standard error (RMSE / √(3 · pixels)): unbiased renders stay within a few.
 // Prints Markdown.
 //
@@ -50,26 +50,6 @@ Scene scene_of(std::shared_ptr<const Material> material, int width) {
     return bench::demo_scene(std::move(material), render::SamplingMode::kMaterial, width);
 }
 
-struct Stats {
-    double rmse = 0, mean = 0, n = 0;
-};
-
-Stats compare(const Image& a, const Image& ref, const std::vector<bool>& mask) {
-    double sum = 0, total = 0;
-    int64_t n = 0;
-    for (int y = 0; y < a.height(); ++y)
-        for (int x = 0; x < a.width(); ++x) {
-            if (!mask[size_t(y) * a.width() + x]) continue;
-            for (int c = 0; c < 3; ++c) {
-                const double d = double(a.at(x, y, c)) - ref.at(x, y, c);
-                sum += d * d;
-                total += a.at(x, y, c);
-            }
-            n += 3;
-        }
-    return {std::sqrt(sum / double(n)), total / double(n), double(n)};
-}
-
 RenderOptions options_for(Filter filter) {
     RenderOptions o;
     o.integrator.max_depth = 6;
@@ -99,54 +79,49 @@ int main(int argc, char** argv) {
     try {
         std::vector<std::string> means;
         std::printf(
-            "| material | paths/s at 512²: deterministic / stochastic | T | spp: deterministic / "
+            "| material | T | spp: deterministic / stochastic | paths/s: deterministic / "
             "stochastic | RMSE: deterministic | RMSE: stochastic | deterministic / stochastic "
             "|\n|---|---|---|---|---|---|---|\n");
         for (const std::string& path : packages) {
             const std::shared_ptr<const Material> material(open_material(path));
             const std::string name = std::filesystem::path(path).filename().string();
-            // Throughput at 512², after a warm-up pass (generic sampler tables, caches).
-            const Scene big = scene_of(material, 512);
-            double rate[2];
-            for (int f = 0; f < 2; ++f) {
-                RenderOptions o =
-                    options_for(f == 0 ? Filter::kDeterministic : Filter::kStochastic);
-                o.spp = 1;
-                render::render(big, o);
-                o.spp = 4;
-                const RenderResult r = render::render(big, o);
-                rate[f] = double(r.paths()) / r.seconds;
-            }
             const Scene scene = scene_of(material, size);
+            for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
+                RenderOptions o = options_for(filter);
+                o.spp = 1;
+                render::render(scene, o);
+            }
             const std::vector<bool> mask = bench::btf_mask(scene);
             RenderOptions ref_options = options_for(Filter::kDeterministic);
             ref_options.spp = reference_spp;
             ref_options.seed = 12345;
             const Image reference = render::render(scene, ref_options).color;
-            Stats last[2];
+            bench::MaskedError last[2];
             for (const double t : seconds) {
-                Stats s[2];
+                bench::MaskedError s[2];
                 int spp[2];
+                double rate[2];
                 for (int f = 0; f < 2; ++f) {
                     RenderOptions o =
                         options_for(f == 0 ? Filter::kDeterministic : Filter::kStochastic);
                     o.spp = 0;
                     o.time_limit = t;
                     const RenderResult r = render::render(scene, o);
-                    s[f] = compare(r.color, reference, mask);
+                    s[f] = bench::masked_error(r.color, reference, mask);
                     spp[f] = r.spp;
+                    rate[f] = double(r.paths()) / r.seconds;
                     last[f] = s[f];
                 }
                 std::printf(
-                    "| %s | %.2f M / %.2f M | %.0f s | %d / %d | %.4f | %.4f | **%.2f×** |\n",
-                    name.c_str(), rate[0] / 1e6, rate[1] / 1e6, t, spp[0], spp[1], s[0].rmse,
+                    "| %s | %.0f s | %d / %d | %.2f M / %.2f M | %.4f | %.4f | **%.2f×** |\n",
+                    name.c_str(), t, spp[0], spp[1], rate[0] / 1e6, rate[1] / 1e6, s[0].rmse,
                     s[1].rmse, s[0].rmse / s[1].rmse);
                 std::fflush(stdout);
             }
-            const Stats ref = compare(reference, reference, mask);
+            const bench::MaskedError ref = bench::masked_error(reference, reference, mask);
             std::string row = fmt::format("| {} | {:.5f} |", name, ref.mean);
             for (int f = 0; f < 2; ++f) {
-                const double se = last[f].rmse / std::sqrt(last[f].n);
+                const double se = last[f].rmse / std::sqrt(last[f].values);
                 row += fmt::format(" {:.5f} ({:+.2f} SE) |", last[f].mean,
                                    (last[f].mean - ref.mean) / se);
             }

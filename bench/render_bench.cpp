@@ -57,21 +57,6 @@ std::shared_ptr<const Material> compress(const BtfSource& source, const std::str
     return open_material(decode_package(bytes, codec + " package"));
 }
 
-double rmse(const Image& a, const Image& ref, const std::vector<bool>& mask) {
-    double sum = 0;
-    int64_t n = 0;
-    for (int y = 0; y < a.height(); ++y)
-        for (int x = 0; x < a.width(); ++x) {
-            if (!mask[size_t(y) * a.width() + x]) continue;
-            for (int c = 0; c < 3; ++c) {
-                const double d = double(a.at(x, y, c)) - ref.at(x, y, c);
-                sum += d * d;
-            }
-            n += 3;
-        }
-    return std::sqrt(sum / double(n));
-}
-
 struct Timed {
     double rmse = 0;
     int spp = 0;
@@ -85,7 +70,7 @@ Timed at_equal_time(const Scene& scene, double seconds, const Image& reference,
     options.time_limit = seconds;
     options.integrator.max_depth = 6;
     const RenderResult r = render::render(scene, options);
-    return {rmse(r.color, reference, mask), r.spp};
+    return {bench::masked_error(r.color, reference, mask).rmse, r.spp};
 }
 
 }  // namespace
