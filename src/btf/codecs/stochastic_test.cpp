@@ -281,25 +281,25 @@ TEST(StochasticFilter, DeterministicPointIsTheMaterialsOwnCalls) {
 TEST(StochasticFilter, PickDrawsByWeightAndReusesTheNumber) {
     const float w[4] = {0.1f, 0.0f, 0.6f, 0.3f};
     double u = 0.05;
-    EXPECT_EQ(pick(w, 4, u), 0);
+    EXPECT_EQ(pick<4>(w, 4, u), 0);
     EXPECT_NEAR(u, 0.5, 1e-6);
     u = 0.1;  // exactly on the boundary: the next positive weight
-    EXPECT_EQ(pick(w, 4, u), 2);
+    EXPECT_EQ(pick<4>(w, 4, u), 2);
     EXPECT_NEAR(u, 0.0, 1e-6);
     u = 0.85;
-    EXPECT_EQ(pick(w, 4, u), 3);
+    EXPECT_EQ(pick<4>(w, 4, u), 3);
     EXPECT_NEAR(u, 0.5, 1e-6);
     u = 0.999999999;
-    EXPECT_EQ(pick(w, 4, u), 3);
+    EXPECT_EQ(pick<4>(w, 4, u), 3);
     EXPECT_LT(u, 1.0);
     const float zero[2] = {0, 0};
     u = 0.7;
-    EXPECT_EQ(pick(zero, 2, u), 0);
+    EXPECT_EQ(pick<2>(zero, 2, u), 0);
     // Frequencies over a stratified u: exactly the weights.
     int counts[4] = {0, 0, 0, 0};
     for (int i = 0; i < 10000; ++i) {
         double v = (i + 0.5) / 10000;
-        ++counts[pick(w, 4, v)];
+        ++counts[pick<4>(w, 4, v)];
     }
     EXPECT_EQ(counts[0], 1000);
     EXPECT_EQ(counts[1], 0);

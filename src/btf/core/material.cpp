@@ -106,10 +106,10 @@ Selection Material::select(const Uv& uv, const Vec3& wo, double u) const {
     Selection s;
     s.u = u;
     const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
-    s.x = pick(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
-    s.y = pick(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
+    s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
+    s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
     const AngularWeights views = view_interpolator().weights(wo);
-    s.view = views.index[size_t(pick(views.weight.data(), views.count, s.u))];
+    s.view = views.index[size_t(pick<3>(views.weight.data(), views.count, s.u))];
     return s;
 }
 
@@ -117,7 +117,7 @@ Rgb Material::eval_selected(const Selection& s, const Uv&, const Vec3&, const Ve
     const AngularWeights lights = light_interpolator().weights(wi);
     double u = s.u;
     return eval_sample(s.x, s.y, s.view,
-                       lights.index[size_t(pick(lights.weight.data(), lights.count, u))]);
+                       lights.index[size_t(pick<3>(lights.weight.data(), lights.count, u))]);
 }
 
 LightSample Material::sample_selected(const Selection& s, const Uv& uv, const Vec3& wo, double xi1,

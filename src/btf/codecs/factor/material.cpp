@@ -190,49 +190,15 @@ inline void put_value(uint16_t* out, float v) {
     *out = to_half(v);
 }
 
-// pick() of btf/core/material.h for count ≤ N weights, the same index and the same remaining
-// number, computed without branches: which interval a random number falls in is a coin toss, and
-// a mispredicted branch there discards the work on the next queries that the processor had
-// started (the 4 dependent picks of a stochastic query: 55 ns with pick()'s branches, 45 ns
-// without, measured on random weights).
-// Weights must not be negative (barycentric and bilinear weights are not): a zero weight then adds
-// exactly nothing to the running sum, so the sum needs no skipping.
-template <int N, typename W>
-inline int pick_unbranched(const W* weight, int count, double& u) {
-    double value[N], low[N];
-    double total = 0;
-    for (int i = 0; i < N; ++i) {
-        value[i] = double(weight[i]) * double(i < count);  // entries from count on: 0
-        low[i] = total;
-        total += value[i];
-    }
-    if (!(total > 0)) return 0;
-    const double target = u * total;
-    // Bit i: pick() stops at i (a positive weight whose interval holds target, or the last one).
-    unsigned stops = 0, positive = 0;
-    for (int i = 0; i < N; ++i) {
-        const unsigned p = value[i] > 0;
-        positive |= p << i;
-        stops |= (p & ((target < low[i] + value[i]) | (i + 1 == count))) << i;
-    }
-    if (stops == 0) {  // rounding left target beyond the last positive weight's interval
-        u = 0x1.fffffffffffffp-1;
-        return 31 - __builtin_clz(positive);
-    }
-    const int i = __builtin_ctz(stops);
-    u = std::min(std::max((target - low[i]) / value[i], 0.0), 0x1.fffffffffffffp-1);
-    return i;
-}
-
 // Queries drawn at once by eval_stochastic_batch(): one per lane of a vector of doubles.
 constexpr size_t kGroup = 4;
 typedef double Group __attribute__((vector_size(8 * kGroup)));
 typedef int64_t GroupMask __attribute__((vector_size(8 * kGroup)));  // lanes 0 or −1
 typedef int64_t GroupIndex __attribute__((vector_size(8 * kGroup)));
 
-// pick_unbranched() in every lane: weights w[i] (zero from each lane's count on), last[i] the
-// lanes whose count is i + 1, u each lane's number. Every candidate remaining number is computed
-// and the drawn one kept, so the division does not wait for the comparisons.
+// pick() of btf/core/material.h in every lane: weights w[i] (zero from each lane's count on),
+// last[i] the lanes whose count is i + 1, u each lane's number. Every candidate remaining number is
+// computed and the drawn one kept, so the division does not wait for the comparisons.
 template <int N>
 inline GroupIndex pick_group(const Group* w, const GroupMask* last, Group& u) {
     Group low[N];
@@ -535,15 +501,15 @@ struct FactorMaterial::Impl {
         Selection s;
         s.u = u;
         const float wx[2] = {1 - w.lx.t, w.lx.t}, wy[2] = {1 - w.ly.t, w.ly.t};
-        s.x = pick_unbranched<2>(wx, 2, s.u) == 0 ? w.lx.i0 : w.lx.i1;
-        s.y = pick_unbranched<2>(wy, 2, s.u) == 0 ? w.ly.i0 : w.ly.i1;
-        s.view = w.vw.index[size_t(pick_unbranched<3>(w.vw.weight.data(), w.vw.count, s.u))];
+        s.x = pick<2>(wx, 2, s.u) == 0 ? w.lx.i0 : w.lx.i1;
+        s.y = pick<2>(wy, 2, s.u) == 0 ? w.ly.i0 : w.ly.i1;
+        s.view = w.vw.index[size_t(pick<3>(w.vw.weight.data(), w.vw.count, s.u))];
         return s;
     }
     // The light Material::eval_selected() draws from the weights of wi with what is left of the
     // number, u.
     static int draw_light(const AngularWeights& lw, double u) {
-        return lw.index[size_t(pick_unbranched<3>(lw.weight.data(), lw.count, u))];
+        return lw.index[size_t(pick<3>(lw.weight.data(), lw.count, u))];
     }
     struct Drawn {
         int64_t texel;

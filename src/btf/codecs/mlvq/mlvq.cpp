@@ -878,14 +878,14 @@ Selection MlvqMaterial::select_view(const Uv& uv, const MlvqWeights& view, doubl
     Selection s;
     s.u = u;
     const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
-    s.x = pick(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
-    s.y = pick(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
+    s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
+    s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
     // The products gather() weights the nodes with, in its order (φv major).
     const float wv[4] = {view.phi_v.weight[0] * view.theta_v.weight[0],
                          view.phi_v.weight[0] * view.theta_v.weight[1],
                          view.phi_v.weight[1] * view.theta_v.weight[0],
                          view.phi_v.weight[1] * view.theta_v.weight[1]};
-    const int node = pick(wv, 4, s.u);
+    const int node = pick<4>(wv, 4, s.u);
     s.view =
         view.phi_v.index[node >> 1] * m_decoded->grid().n_theta_v + view.theta_v.index[node & 1];
     return s;
