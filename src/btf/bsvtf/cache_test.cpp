@@ -285,7 +285,13 @@ nlohmann::json decision_trace() {
         for (int p = 0; p < 60; ++p) {
             const int m = p % 3 == 0 ? 1 : 0;
             const int level = std::max(0, zoom - 1 + int(uniform() * 2));
-            const double u = cu + (uniform() - 0.5) * 0.3, v = cv + (uniform() - 0.5) * 0.3;
+            // On a grid of 2⁻²⁴: the file holds the same numbers whether the compiler fused the
+            // multiply-adds above into FMAs (-O2) or not (-O1).
+            const auto on_grid = [](double x) {
+                return std::ldexp(std::round(std::ldexp(x, 24)), -24);
+            };
+            const double u = on_grid(cu + (uniform() - 0.5) * 0.3);
+            const double v = on_grid(cv + (uniform() - 0.5) * 0.3);
             votes.add(m, level, u, v);
             pixels.push_back({m, level, u, v});
         }
