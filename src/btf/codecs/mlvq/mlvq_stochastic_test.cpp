@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "btf/codecs/mlvq/mlvq.h"
+#include "btf/codecs/mlvq/small_grid_test.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/synth/synth.h"
 #include "btf/testing/chi_square.h"
@@ -21,15 +22,6 @@ namespace {
 // A namespace of its own: a unity build compiles this file with mlvq_test.cpp and the other
 // tests of the module, whose helpers have the same names.
 namespace stochastic_filter {
-
-// The small grid of mlvq_test.cpp: 7 α × 7 β × 4 θv (0°, 30°, 60°, 90°) × 6 φv (60° apart).
-Params small_grid(Params p = {}) {
-    p.set("n-alpha", "7");
-    p.set("n-beta", "7");
-    p.set("n-theta-v", "4");
-    p.set("n-phi-v", "6");
-    return p;
-}
 
 const Material& leather() {
     static const std::unique_ptr<Material> material = [] {

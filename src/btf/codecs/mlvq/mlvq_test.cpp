@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "btf/codecs/material_source.h"
+#include "btf/codecs/mlvq/small_grid_test.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/core/light_sampler.h"
 #include "btf/io/function_source.h"
@@ -19,15 +20,6 @@
 
 namespace btf::mlvq {
 namespace {
-
-// A small grid keeps the tests fast; the structure is the paper's.
-Params small_grid(Params p = {}) {
-    p.set("n-alpha", "7");
-    p.set("n-beta", "7");
-    p.set("n-theta-v", "4");
-    p.set("n-phi-v", "6");
-    return p;
-}
 
 const BtfSource& leather() {
     static const std::unique_ptr<FunctionSource> source =
