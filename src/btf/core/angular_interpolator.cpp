@@ -158,7 +158,7 @@ AngularInterpolator::AngularInterpolator(const DirectionSet& set, int grid_resol
         }
 
     triangulate();
-    build_grid();
+    build_lookup();
 }
 
 void AngularInterpolator::triangulate() {
@@ -273,31 +273,35 @@ inline Vec3 AngularInterpolator::prepare(const Vec3& direction) const {
     return {x, y, z};
 }
 
-inline int AngularInterpolator::cell_of(const Vec3& d) const {
-    // hemisphere_to_square() for a prepared vector without the detour through the disk point:
-    // the disk radius is r = √(1 − cos θ) = √((x² + y²) / (|d|² + |d| z)) and the disk point has
-    // the query's azimuth. No branches: which of |x|, |y| is larger is a coin toss for random
-    // queries.
-    const double x = d.x, y = d.y, z = d.z;
-    const double xy2 = x * x + y * y;
-    const double len2 = xy2 + z * z;
-    const double r = std::sqrt(xy2 / (len2 + std::sqrt(len2) * z));
-    const bool x_major = std::abs(x) >= std::abs(y);
-    const double major = x_major ? x : y;
-    const double minor = x_major ? y : x;
-    // major = 0 only at the zenith, where minor = 0 too and the ratio must be 0.
-    const double ratio = minor / (major != 0 ? major : 1.0);
-    const double along = std::copysign(r, major);  // the square coordinate along the major axis
-    const double across = along * (4 / kPi) * approximate_atan(ratio);
-    const double a = x_major ? along : across;  // the square point in [-1,1]²
-    const double b = x_major ? across : along;
-    // Truncation toward zero also maps the −1e-5 that the approximation can reach to 0.
-    const int n = m_resolution;
-    const double half = 0.5 * n;
-    const int col = std::min(static_cast<int>((a + 1) * half), n - 1);
-    const int row = std::min(static_cast<int>((b + 1) * half), n - 1);
-    return row * n + col;
+namespace {
+
+// The map that weights() grids: the upper half of the octahedral map, turned by 45° so that it
+// fills the unit square. A vector (x, y, z) with z ≥ 0, not zero, goes to
+//     q = (x, y) / (|x| + |y| + z),   (u, v) = ((q_x + q_y + 1) / 2, (q_x − q_y + 1) / 2):
+// one division, no square root or arc tangent, and any length. The diamond |q_x| + |q_y| ≤ 1
+// becomes the square; the zenith is its centre, the horizon its boundary.
+inline SquarePoint octahedral_square(double x, double y, double z) {
+    const double s = 1 / (std::abs(x) + std::abs(y) + z);
+    const double qx = x * s, qy = y * s;
+    return {0.5 * (qx + qy + 1), 0.5 * (qx - qy + 1)};
 }
+
+// Its inverse: the unit vector of a point of [0,1]².
+Vec3 octahedral_direction(double u, double v) {
+    const double a = 2 * u - 1, b = 2 * v - 1;
+    return normalize(Vec3{0.5 * (a + b), 0.5 * (a - b), 1 - std::max(std::abs(a), std::abs(b))});
+}
+
+// The unnormalized gnomonic coordinates l = M d of a prepared query in the triangle whose
+// inverse matrix M is `m` (rows), and whether the query lies in the triangle.
+inline bool contains(const double* m, const Vec3& d, double* l) {
+    l[0] = m[0] * d.x + m[1] * d.y + m[2] * d.z;
+    l[1] = m[3] * d.x + m[4] * d.y + m[5] * d.z;
+    l[2] = m[6] * d.x + m[7] * d.y + m[8] * d.z;
+    return std::min({l[0], l[1], l[2]}) >= -kInside * (l[0] + l[1] + l[2]);
+}
+
+}  // namespace
 
 inline AngularWeights AngularInterpolator::finish(const Triangle& t, const double* l) const {
     // Branch-free: whether a query lands on the rim (2 weights) or not (3) is unpredictable.
@@ -322,21 +326,24 @@ inline AngularWeights AngularInterpolator::finish(const Triangle& t, const doubl
 
 AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
     const Vec3 d = prepare(direction);
-    const int cell = cell_of(d);
-    auto test = [&](int32_t index, double* l) {
-        const double* m = m_triangles[index].inverse.data();
-        l[0] = m[0] * d.x + m[1] * d.y + m[2] * d.z;
-        l[1] = m[3] * d.x + m[4] * d.y + m[5] * d.z;
-        l[2] = m[6] * d.x + m[7] * d.y + m[8] * d.z;
-        return std::min({l[0], l[1], l[2]}) >= -kInside * (l[0] + l[1] + l[2]);
-    };
-    // The best-covering candidate is kept beside the offsets: most queries need no other load.
-    double l[3];
-    const int32_t first = m_cell_first[cell];
-    if (test(first, l)) return finish(m_triangles[first], l);
-    const int32_t* end = m_cell_triangles.data() + m_cell_offsets[cell + 1];
-    for (const int32_t* c = m_cell_triangles.data() + m_cell_offsets[cell] + 1; c < end; ++c)
-        if (test(*c, l)) return finish(m_triangles[*c], l);
+    const SquarePoint p = octahedral_square(d.x, d.y, d.z);
+    const int g = m_lookup.resolution;
+    const int cell =
+        std::min(static_cast<int>(p.v * g), g - 1) * g + std::min(static_cast<int>(p.u * g), g - 1);
+    // The cell's two best-covering candidates, both tested: a query in a cell that an edge
+    // crosses lies in either with odds a branch would mispredict. Only cells near a vertex need
+    // a third, and those are few.
+    const std::array<int32_t, 2> pair = m_lookup_pairs[cell];
+    double a[3], b[3];
+    const bool in_a = contains(m_triangles[pair[0]].inverse.data(), d, a);
+    const bool in_b = contains(m_triangles[pair[1]].inverse.data(), d, b);
+    if (in_a | in_b) {
+        const double l[3] = {in_a ? a[0] : b[0], in_a ? a[1] : b[1], in_a ? a[2] : b[2]};
+        return finish(m_triangles[in_a ? pair[0] : pair[1]], l);
+    }
+    const int32_t* end = m_lookup.triangles.data() + m_lookup.offsets[cell + 1];
+    for (const int32_t* c = m_lookup.triangles.data() + m_lookup.offsets[cell] + 2; c < end; ++c)
+        if (contains(m_triangles[*c].inverse.data(), d, a)) return finish(m_triangles[*c], a);
     m_fallbacks.value.fetch_add(1, std::memory_order_relaxed);
     return weights_brute_force(direction);
 }
@@ -369,19 +376,28 @@ AngularWeights AngularInterpolator::weights_brute_force(const Vec3& direction) c
     return finish(*best, best_l);
 }
 
-void AngularInterpolator::build_grid() {
-    const int r = m_resolution;
+AngularInterpolator::CandidateGrid AngularInterpolator::build_grid(GridMap map, int r) const {
     const int cells = r * r;
-    // Boundary curves are sampled at this angular step; the map to the square stretches arcs
-    // by less than a factor 1 (in square units per radian), so consecutive samples are less
-    // than a quarter cell apart, and the one-cell dilation below covers everything between.
-    const double step = 0.25 / r;
+    // Points of the hemisphere on the square and back. Points of the octahedral square are all
+    // above the horizon; the square map's too.
+    auto to_square = [map](const Vec3& d) {
+        return map == GridMap::kSquare ? hemisphere_to_square(d)
+                                       : octahedral_square(d.x, d.y, std::max(d.z, 0.0));
+    };
+    auto to_hemisphere = [map](double u, double v) {
+        return map == GridMap::kSquare ? square_to_hemisphere({u, v}) : octahedral_direction(u, v);
+    };
+    // Boundary curves are sampled at this angular step. The area-preserving map stretches arcs
+    // by less than 1 square unit per radian, the octahedral one by less than 1.15 (measured
+    // over 2·10⁷ random directions and tangents), so consecutive samples are less than a
+    // quarter cell apart, and the one-cell dilation below covers everything between.
+    const double step = (map == GridMap::kSquare ? 0.25 : 0.2) / r;
     const int horizon_samples = static_cast<int>(std::ceil(2 * kPi / step));
 
-    auto cell_of = [r](const Vec3& d) {
-        const SquarePoint p = hemisphere_to_square(d);
-        return std::array<int, 2>{std::min(static_cast<int>(p.u * r), r - 1),
-                                  std::min(static_cast<int>(p.v * r), r - 1)};
+    auto cell_of = [&](const Vec3& d) {
+        const SquarePoint p = to_square(d);
+        return std::array<int, 2>{std::clamp(static_cast<int>(p.u * r), 0, r - 1),
+                                  std::clamp(static_cast<int>(p.v * r), 0, r - 1)};
     };
     auto inside = [](const Triangle& t, const Vec3& d, double tolerance) {
         const double* m = t.inverse.data();
@@ -393,16 +409,15 @@ void AngularInterpolator::build_grid() {
     };
 
     // Sample points of each cell: its four corners and its centre.
-    auto corner = [&](int i, int j) {
-        return square_to_hemisphere({static_cast<double>(i) / r, static_cast<double>(j) / r});
-    };
     std::vector<Vec3> corners((r + 1) * (r + 1));
     for (int j = 0; j <= r; ++j)
-        for (int i = 0; i <= r; ++i) corners[j * (r + 1) + i] = corner(i, j);
+        for (int i = 0; i <= r; ++i)
+            corners[j * (r + 1) + i] =
+                to_hemisphere(static_cast<double>(i) / r, static_cast<double>(j) / r);
     std::vector<Vec3> centres(cells);
     for (int j = 0; j < r; ++j)
         for (int i = 0; i < r; ++i)
-            centres[j * r + i] = square_to_hemisphere({(i + 0.5) / r, (j + 0.5) / r});
+            centres[j * r + i] = to_hemisphere((i + 0.5) / r, (j + 0.5) / r);
 
     std::vector<std::vector<int32_t>> lists(cells);
     std::vector<char> marked(cells, 0);
@@ -465,9 +480,9 @@ void AngularInterpolator::build_grid() {
     // One-cell dilation, then order each cell's candidates by how much of the cell they cover
     // (counted on a 4×4 set of sample points) so that a query usually succeeds at the first.
     constexpr int kSub = 4;
-    m_cell_offsets.assign(cells + 1, 0);
-    m_cell_first.assign(cells, 0);
-    m_cell_triangles.clear();
+    CandidateGrid grid;
+    grid.resolution = r;
+    grid.offsets.assign(cells + 1, 0);
     std::vector<int32_t> merged;
     std::vector<std::pair<int, int32_t>> ranked;
     std::array<Vec3, kSub * kSub> sub;
@@ -487,8 +502,8 @@ void AngularInterpolator::build_grid() {
             if (merged.size() > 1)
                 for (int sj = 0; sj < kSub; ++sj)
                     for (int si = 0; si < kSub; ++si)
-                        sub[sj * kSub + si] = square_to_hemisphere(
-                            {(i + (si + 0.5) / kSub) / r, (j + (sj + 0.5) / kSub) / r});
+                        sub[sj * kSub + si] =
+                            to_hemisphere((i + (si + 0.5) / kSub) / r, (j + (sj + 0.5) / kSub) / r);
             for (int32_t ti : merged) {
                 int hits = 0;
                 if (merged.size() > 1)
@@ -496,12 +511,25 @@ void AngularInterpolator::build_grid() {
                 ranked.emplace_back(-hits, ti);
             }
             std::sort(ranked.begin(), ranked.end());
-            for (const auto& [hits, ti] : ranked) m_cell_triangles.push_back(ti);
-            m_cell_offsets[j * r + i + 1] = static_cast<int32_t>(m_cell_triangles.size());
+            for (const auto& [hits, ti] : ranked) grid.triangles.push_back(ti);
+            grid.offsets[j * r + i + 1] = static_cast<int32_t>(grid.triangles.size());
             check(!ranked.empty(), "{}: grid cell ({}, {}) has no candidate triangles",
                   describe(m_set), i, j);
-            m_cell_first[j * r + i] = ranked.front().second;
         }
+    return grid;
+}
+
+void AngularInterpolator::build_lookup() {
+    // About 40 cells per triangle: edges then cross a sixth of the cells, and vertices (where
+    // more than two candidates are needed) a few percent.
+    const int r = std::clamp(static_cast<int>(std::ceil(6.5 * std::sqrt(num_triangles()))), 8, 512);
+    m_lookup = build_grid(GridMap::kOctahedral, r);
+    m_lookup_pairs.resize(size_t(r) * r);
+    for (int c = 0; c < r * r; ++c) {
+        const int32_t* list = m_lookup.triangles.data() + m_lookup.offsets[c];
+        const int size = m_lookup.offsets[c + 1] - m_lookup.offsets[c];
+        m_lookup_pairs[c] = {list[0], list[size > 1 ? 1 : 0]};
+    }
 }
 
 AngularInterpolator::Tables AngularInterpolator::tables() const {
@@ -520,8 +548,9 @@ AngularInterpolator::Tables AngularInterpolator::tables() const {
         out.triangles.insert(out.triangles.end(), t.vertex.begin(), t.vertex.end());
         for (double m : t.inverse) out.inverse.push_back(static_cast<float>(m));
     }
-    out.cell_offsets = m_cell_offsets;
-    out.cell_triangles = m_cell_triangles;
+    CandidateGrid grid = build_grid(GridMap::kSquare, m_resolution);
+    out.cell_offsets = std::move(grid.offsets);
+    out.cell_triangles = std::move(grid.triangles);
     return out;
 }
 

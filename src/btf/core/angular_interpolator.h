@@ -4,8 +4,11 @@
 ///
 /// Construction triangulates the set on the sphere (spherical Delaunay = convex hull of the unit
 /// vectors, computed by Qhull with option "Qt" so that cocircular ring points give triangles) and
-/// builds a lookup grid that finds the triangle of any query in O(1). A query's weights are the
-/// gnomonic (ray–plane) barycentric coordinates in its triangle (a, b, c):
+/// builds a lookup grid that finds the triangle of any query in O(1): a grid over the turned
+/// octahedral map of the hemisphere (one division per query) whose cells keep the triangles
+/// that overlap them, the two that cover most of the cell tested at once. A second grid, over
+/// the area-preserving square map, goes to the viewer's shader with tables(). A query's weights
+/// are the gnomonic (ray–plane) barycentric coordinates in its triangle (a, b, c):
 ///     w_a ∝ det(d, b, c),  w_b ∝ det(a, d, c),  w_c ∝ det(a, b, d),  normalized to sum 1,
 /// which are exact at the vertices and continuous across shared edges.
 ///
@@ -85,8 +88,9 @@ class AngularInterpolator {
         std::vector<int32_t> cell_triangles;
     };
 
-    /// Triangulates `set` (spherical Delaunay via Qhull) and builds the O(1) lookup grid with
-    /// grid_resolution² cells (1 to 1024). Throws btf::Error for an empty set, duplicate
+    /// Triangulates `set` (spherical Delaunay via Qhull) and builds the O(1) lookup grid of
+    /// weights() (its resolution follows the number of triangles). `grid_resolution` (1 to 1024)
+    /// is that of the exported tables' grid. Throws btf::Error for an empty set, duplicate
     /// directions, directions below the horizon or a bad resolution.
     explicit AngularInterpolator(const DirectionSet& set, int grid_resolution = 64);
 
@@ -101,7 +105,10 @@ class AngularInterpolator {
     /// the reference for tests).
     AngularWeights weights_brute_force(const Vec3& direction) const;
 
+    /// The exported tables' grid resolution (the constructor's argument).
     int grid_resolution() const { return m_resolution; }
+    /// The resolution of weights()' own grid over the octahedral map.
+    int lookup_resolution() const { return m_lookup.resolution; }
     /// Triangles of the closed triangulation, auxiliary-only ones included.
     int num_triangles() const { return static_cast<int>(m_triangles.size()); }
     /// Auxiliary vertices added below the horizon (1 = the pole only).
@@ -114,7 +121,8 @@ class AngularInterpolator {
     /// directions lie on the horizon; otherwise an auxiliary vertex).
     const Vec3& vertex(int v) const { return m_vertices[v]; }
 
-    /// The triangulation and grid as plain arrays for export (e.g. to a WebGL shader).
+    /// The triangulation and a grid of grid_resolution² cells over hemisphere_to_square() as
+    /// plain arrays for export (e.g. to a WebGL shader); the grid is built by each call.
     Tables tables() const;
 
     /// How many weights() queries found no containing candidate in their cell and fell back to
@@ -140,20 +148,31 @@ class AngularInterpolator {
         }
     };
 
+    // A grid of candidate triangles over a map of the hemisphere onto [0,1]²: for each of its
+    // resolution² cells, every triangle that overlaps the cell or a neighbour, the ones that
+    // cover most of the cell first.
+    struct CandidateGrid {
+        int resolution = 0;
+        std::vector<int32_t> offsets;    // resolution² + 1
+        std::vector<int32_t> triangles;  // cell k: triangles[offsets[k] .. offsets[k + 1])
+    };
+    // kSquare: hemisphere_to_square(), the exported tables' map (the viewer's shader uses it).
+    // kOctahedral: the turned octahedral map, one division per query, which weights() uses.
+    enum class GridMap { kSquare, kOctahedral };
+
     Vec3 prepare(const Vec3& direction) const;
-    int cell_of(const Vec3& prepared) const;
     AngularWeights finish(const Triangle& t, const double* gnomonic) const;
     void triangulate();
-    void build_grid();
+    CandidateGrid build_grid(GridMap map, int resolution) const;
+    void build_lookup();
 
     DirectionSet m_set;
-    int m_resolution = 0;
+    int m_resolution = 0;  // of the exported tables' grid
     bool m_lifted = false;
     std::vector<Vec3> m_vertices;  // directions (maybe lifted), then auxiliary vertices
     std::vector<Triangle> m_triangles;
-    std::vector<int32_t> m_cell_offsets;
-    std::vector<int32_t> m_cell_triangles;
-    std::vector<int32_t> m_cell_first;  // m_cell_triangles[m_cell_offsets[c]], one load sooner
+    CandidateGrid m_lookup;                              // weights()' grid (octahedral)
+    std::vector<std::array<int32_t, 2>> m_lookup_pairs;  // its cells' first two candidates
     Counter m_fallbacks;
 };
 

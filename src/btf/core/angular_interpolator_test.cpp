@@ -213,6 +213,29 @@ TEST_P(BuiltinAndRandomSets, AgreesWithBruteForceSearch) {
     EXPECT_EQ(interp.fallback_count(), 0) << "queries that missed their grid cell's candidates";
 }
 
+// weights() grids the octahedral map, whose cells fold along the octants' boundaries (the planes
+// x = 0 and y = 0, the square's diagonals) and end at the horizon (its border): queries on and
+// next to those lines, at every height, against the brute-force search.
+TEST_P(BuiltinAndRandomSets, LookupGridHoldsOnTheOctantBoundaries) {
+    const DirectionSet set = make(GetParam());
+    const AngularInterpolator interp(set);
+    EXPECT_EQ(interp.lookup_resolution(),
+              static_cast<int>(std::ceil(6.5 * std::sqrt(interp.num_triangles()))));
+    double worst = 0;
+    for (int k = 0; k < 4; ++k)
+        for (const double offset : {0.0, 1e-12, -1e-12, 1e-7, -1e-7}) {
+            const double phi = k * kPi / 2 + offset;
+            for (int j = 0; j <= 2000; ++j) {
+                const Vec3 q = Direction{kPi / 2 * j / 2000, phi}.vector();
+                worst = std::max(worst,
+                                 max_difference(dense(interp.weights(q), set.size()),
+                                                dense(interp.weights_brute_force(q), set.size())));
+            }
+        }
+    EXPECT_LT(worst, 1e-6);
+    EXPECT_EQ(interp.fallback_count(), 0);
+}
+
 TEST_P(BuiltinAndRandomSets, ContinuousForNearbyDirections) {
     const DirectionSet set = make(GetParam());
     const AngularInterpolator interp(set);
@@ -544,12 +567,22 @@ TEST(AngularInterpolator, RejectsBadSets) {
 }
 
 TEST(AngularInterpolator, CoarseAndFineGridsAgree) {
+    // The exported grid's resolution changes neither weights() nor the shader's lookup.
     const AngularInterpolator coarse(DirectionSet::dome151(), 1);
     const AngularInterpolator fine(DirectionSet::dome151(), 256);
+    const AngularInterpolator::Tables coarse_tables = coarse.tables(), fine_tables = fine.tables();
+    EXPECT_EQ(coarse_tables.cell_offsets.size(), 2u);
+    EXPECT_EQ(fine_tables.cell_offsets.size(), 256u * 256 + 1);
     std::mt19937_64 rng(9);
     for (int i = 0; i < 20000; ++i) {
         const Vec3 q = random_query(rng, i);
         ASSERT_LT(max_difference(dense(coarse.weights(q), 151), dense(fine.weights(q), 151)), 1e-6);
+        if (i % 10 == 0) {
+            const std::vector<double> a = shader_weights(coarse_tables, q);
+            const std::vector<double> b = shader_weights(fine_tables, q);
+            ASSERT_EQ(a.size(), b.size());
+            ASSERT_LT(max_difference(a, b), 1e-5);
+        }
     }
     EXPECT_EQ(coarse.fallback_count(), 0);
     EXPECT_EQ(fine.fallback_count(), 0);
