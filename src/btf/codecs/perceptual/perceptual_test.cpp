@@ -673,10 +673,28 @@ TEST(PerceptualOmission, TheAngularSectionIsTheUpSamplingOfTheHeadersLevels) {
                 EXPECT_NEAR(sum, 1.0f, 1e-5f);
             }
     EXPECT_EQ(at, angular->data.size());
-    Package damaged = full;
-    damaged.sections[1].data[4] ^= 0x40;
-    EXPECT_THAT(test::error_of([&] { perceptual_codec().open(damaged); }),
-                testing::HasSubstr("section 'angular'"));
+    // Weights that differ in their last bits (as an earlier lookup's may: a direction on an
+    // edge lies in two triangles) are the same up-sampling; a changed weight or a NaN is not.
+    auto with_weight = [&](size_t i, auto change) {
+        Package p = full;
+        float w;
+        std::memcpy(&w, p.sections[1].data.data() + 4 * i, 4);
+        w = change(w);
+        std::memcpy(p.sections[1].data.data() + 4 * i, &w, 4);
+        return p;
+    };
+    for (const size_t i : {size_t(0), size_t(1), angular->data.size() / 4 - 1}) {
+        EXPECT_NO_THROW(perceptual_codec().open(
+            with_weight(i, [](float w) { return std::nextafter(w, 2.0f); })));
+        EXPECT_THAT(test::error_of([&] {
+                        perceptual_codec().open(with_weight(i, [](float w) { return w + 0.01f; }));
+                    }),
+                    testing::HasSubstr("section 'angular'"));
+        EXPECT_THAT(test::error_of([&] {
+                        perceptual_codec().open(with_weight(i, [](float) { return NAN; }));
+                    }),
+                    testing::HasSubstr("weights differing by up to inf"));
+    }
 }
 
 TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
