@@ -105,11 +105,14 @@ Selection Material::select(const Uv& uv, const Vec3& wo, double u) const {
     const WrapLerp lx = wrap_lerp(uv.u, width()), ly = wrap_lerp(uv.v, height());
     Selection s;
     s.u = u;
+    // The view first: its weights hardly change between the samples of a pixel, so a renderer's
+    // stratified numbers (render::primary_filter_number()) stratify its draw; the texel's weights
+    // change with every sample's position.
+    const AngularWeights views = view_interpolator().weights(wo);
+    s.view = views.index[size_t(pick<3>(views.weight.data(), views.count, s.u))];
     const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
     s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
     s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
-    const AngularWeights views = view_interpolator().weights(wo);
-    s.view = views.index[size_t(pick<3>(views.weight.data(), views.count, s.u))];
     return s;
 }
 

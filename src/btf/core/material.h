@@ -20,15 +20,15 @@
 /// - deterministic: eval(), sample(), pdf() — the filtered value, for pictures and metrics;
 /// - stochastic: a ShadingPoint made with Filter::kStochastic draws one texel with probability
 ///   equal to its bilinear weight and one view with probability equal to its barycentric weight
-///   from one uniform number, and every eval(ωi) then draws one light the same way from what is
-///   left of that number. Its value is one term of the filter's sum, so its mean over the number
-///   is exactly eval()'s value wherever the codec's decoding after interpolation is linear (rgb,
-///   decorrelated and per-channel planes, YCbCr; the RGB materials of files): see
-///   docs/codecs.md for the codecs whose colour decoding is not. A shading point keeps its
-///   selection, so eval, sample and pdf at one path vertex agree (MIS sees one member of a
-///   mixture whose mean is the filtered BTF). The selection lives here, once
-///   (Material::select()); a codec supplies the uninterpolated lookup (eval_sample()) and may
-///   override the selected lookups for speed or for its own interpolation (mlvq).
+///   from one uniform number (the view first, then the texel), and every eval(ωi) then draws one
+///   light the same way from what is left of that number. Its value is one term of the filter's
+///   sum, so its mean over the number is exactly eval()'s value wherever the codec's decoding
+///   after interpolation is linear (rgb, decorrelated and per-channel planes, YCbCr; the RGB
+///   materials of files): see docs/codecs.md for the codecs whose colour decoding is not. A
+///   shading point keeps its selection, so eval, sample and pdf at one path vertex agree (MIS
+///   sees one member of a mixture whose mean is the filtered BTF). The selection lives here,
+///   once (Material::select()); a codec supplies the uninterpolated lookup (eval_sample()) and
+///   may override the selected lookups for speed or for its own interpolation (mlvq).
 
 #include <algorithm>
 #include <atomic>

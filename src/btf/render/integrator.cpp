@@ -39,8 +39,16 @@ double hit_weight(LightStrategy strategy, double material_pdf, double light_pdf)
 
 }  // namespace
 
+double primary_filter_number(uint64_t seed, uint64_t pixel, uint64_t pass) {
+    constexpr double kGolden = 0.61803398874989484820;  // (√5 − 1) / 2
+    // A stream of its own: the sample streams (seed, pixel, pass) are left as they were.
+    const double start = Rng(seed ^ 0x5851F42D4C957F2Dull, pixel, ~uint64_t(0)).uniform();
+    const double x = start + double(pass) * kGolden;
+    return std::min(x - std::floor(x), 0x1.fffffffffffffp-1);
+}
+
 Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const IntegratorOptions& options,
-             FirstHit* first) {
+             FirstHit* first, std::optional<double> primary_filter_number) {
     Rgb L, beta{1, 1, 1};
     Ray ray = camera_ray;
     double previous_pdf = 0;  // the material pdf of the direction that made `ray`
@@ -76,9 +84,9 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         if (wo.z < 1e-4) wo = normalize(Vec3{wo.x, wo.y, 1e-4});
         // The vertex draws its filter term (stochastic filtering) once; every evaluation, sample
         // and density below goes through it.
-        const double u = options.filter == Filter::kStochastic && surface.draws_filter_number()
-                             ? rng.uniform()
-                             : 0.0;
+        double u = 0;
+        if (options.filter == Filter::kStochastic && surface.draws_filter_number())
+            u = depth == 0 && primary_filter_number ? *primary_filter_number : rng.uniform();
         const Vertex vertex = surface.vertex(hit.uv, wo, options.filter, u);
         if (depth == 0 && first) {
             first->found = true;

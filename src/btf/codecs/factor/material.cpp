@@ -500,10 +500,10 @@ struct FactorMaterial::Impl {
     Selection draw(const Weighed& w, double u) const {
         Selection s;
         s.u = u;
+        s.view = w.vw.index[size_t(pick<3>(w.vw.weight.data(), w.vw.count, s.u))];
         const float wx[2] = {1 - w.lx.t, w.lx.t}, wy[2] = {1 - w.ly.t, w.ly.t};
         s.x = pick<2>(wx, 2, s.u) == 0 ? w.lx.i0 : w.lx.i1;
         s.y = pick<2>(wy, 2, s.u) == 0 ? w.ly.i0 : w.ly.i1;
-        s.view = w.vw.index[size_t(pick<3>(w.vw.weight.data(), w.vw.count, s.u))];
         return s;
     }
     // The light Material::eval_selected() draws from the weights of wi with what is left of the
@@ -541,9 +541,9 @@ struct FactorMaterial::Impl {
             }
         }
         const GroupMask last2[2] = {GroupMask{}, ~GroupMask{}};
+        const GroupIndex v = pick_group<3>(wv, count_v, u);
         const GroupIndex x = pick_group<2>(wx, last2, u);
         const GroupIndex y = pick_group<2>(wy, last2, u);
-        const GroupIndex v = pick_group<3>(wv, count_v, u);
         t = u;
         const GroupIndex l = pick_group<3>(wl, count_l, t);
         for (size_t j = 0; j < kGroup; ++j) {

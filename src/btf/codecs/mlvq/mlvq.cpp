@@ -870,16 +870,13 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
 
 // ---- stochastic filtering -----------------------------------------------------------------------
 
-// One term of eval()'s sum, drawn with probability equal to its weight there: a texel of the 4
-// by its bilinear weight (x, then y, as Material::select draws them), then a view node of the
-// 2 φv × 2 θv by φv weight × θv weight, each with pick() and what the previous draw left of u.
+// One term of eval()'s sum, drawn with probability equal to its weight there: a view node of the
+// 2 φv × 2 θv by φv weight × θv weight, then a texel of the 4 by its bilinear weight (x, then y),
+// in Material::select()'s order, each with pick() and what the previous draw left of u.
 Selection MlvqMaterial::select_view(const Uv& uv, const MlvqWeights& view, double u) const {
     const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
     Selection s;
     s.u = u;
-    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
-    s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
-    s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
     // The products gather() weights the nodes with, in its order (φv major).
     const float wv[4] = {view.phi_v.weight[0] * view.theta_v.weight[0],
                          view.phi_v.weight[0] * view.theta_v.weight[1],
@@ -888,6 +885,9 @@ Selection MlvqMaterial::select_view(const Uv& uv, const MlvqWeights& view, doubl
     const int node = pick<4>(wv, 4, s.u);
     s.view =
         view.phi_v.index[node >> 1] * m_decoded->grid().n_theta_v + view.theta_v.index[node & 1];
+    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
+    s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
+    s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
     return s;
 }
 
