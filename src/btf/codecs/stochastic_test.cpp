@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -127,14 +128,17 @@ struct Mean {
     double mean[3], se[3];
 };
 
-// n stochastic evaluations with numbers warp(u), u uniform from a fixed seed.
+// n stochastic evaluations with numbers warp(u), u uniform from a fixed seed; with
+// `light_number`, every evaluation draws its light from a second number of its own, warped too.
 Mean stochastic_mean(const Material& m, const Query& q, int n,
-                     const std::function<double(double)>& warp) {
+                     const std::function<double(double)>& warp, bool light_number = false) {
     std::mt19937_64 rng(77);
     double sum[3] = {0, 0, 0}, sq[3] = {0, 0, 0};
     for (int i = 0; i < n; ++i) {
         const double u = warp(test::uniform01(rng));
-        const Rgb v = ShadingPoint(m, q.uv, q.wo, Filter::kStochastic, u).eval(q.wi);
+        std::optional<double> light_u;
+        if (light_number) light_u = warp(test::uniform01(rng));
+        const Rgb v = ShadingPoint(m, q.uv, q.wo, Filter::kStochastic, u, light_u).eval(q.wi);
         const double c[3] = {v.r, v.g, v.b};
         for (int k = 0; k < 3; ++k) sum[k] += c[k], sq[k] += c[k] * c[k];
     }
@@ -177,6 +181,27 @@ TEST(StochasticFilter, MeanIsTheFilteredValueForEveryCodec) {
                 EXPECT_NEAR(f.b, ref.b, 1e-4 * std::max(1.0f, std::abs(ref.b))) << c.name;
             }
         }
+    }
+}
+
+// A light number of its own (what the renderer gives a pixel's first vertex) keeps the mean, and
+// the statistic sees the numbers perturbed.
+TEST(StochasticFilter, MeanIsTheFilteredValueWithALightNumberOfItsOwn) {
+    for (const Case& c : cases()) {
+        double worst_perturbed = 0;
+        for (const Query& q : queries()) {
+            const Rgb ref =
+                c.linear ? c.material->eval(q.uv, q.wi, q.wo) : filter_of_samples(*c.material, q);
+            const Mean s = stochastic_mean(
+                *c.material, q, kEvaluations, [](double u) { return u; }, true);
+            EXPECT_LE(deviation(s, ref), 1.0)
+                << c.name << ": mean " << s.mean[0] << " " << s.mean[1] << " " << s.mean[2] << " ± "
+                << s.se[0] << " against " << ref.r << " " << ref.g << " " << ref.b;
+            const Mean p = stochastic_mean(
+                *c.material, q, kEvaluations, [](double u) { return u * u; }, true);
+            worst_perturbed = std::max(worst_perturbed, deviation(p, ref));
+        }
+        EXPECT_GT(worst_perturbed, 1.0) << c.name << ": perturbed numbers went unnoticed";
     }
 }
 

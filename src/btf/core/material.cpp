@@ -106,7 +106,7 @@ Selection Material::select(const Uv& uv, const Vec3& wo, double u) const {
     Selection s;
     s.u = u;
     // The view first: its weights hardly change between the samples of a pixel, so a renderer's
-    // stratified numbers (render::primary_filter_number()) stratify its draw; the texel's weights
+    // stratified numbers (render::primary_filter_numbers()) stratify its draw; the texel's weights
     // change with every sample's position.
     const AngularWeights views = view_interpolator().weights(wo);
     s.view = views.index[size_t(pick<3>(views.weight.data(), views.count, s.u))];
@@ -158,12 +158,12 @@ void Material::sample_stochastic_batch(std::span<const StochasticSampleQuery> qu
 // ---- ShadingPoint -----------------------------------------------------------------------------
 
 ShadingPoint::ShadingPoint(const Material& material, const Uv& uv, const Vec3& wo, Filter filter,
-                           double u)
+                           double u, std::optional<double> light_u)
     : m_material(&material), m_uv(uv), m_wo(wo), m_filter(filter) {
     if (filter == Filter::kStochastic) {
-        if (!(u >= 0)) u = 0;  // NaN too
-        u = std::min(u, 0x1.fffffffffffffp-1);
-        m_selection = material.select(uv, wo, u);
+        auto clamp = [](double x) { return x >= 0 ? std::min(x, 0x1.fffffffffffffp-1) : 0.0; };
+        m_selection = material.select(uv, wo, clamp(u));  // (NaN → 0)
+        if (light_u) m_selection.u = clamp(*light_u);
     }
 }
 

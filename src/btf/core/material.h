@@ -34,6 +34,7 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -279,8 +280,12 @@ class ShadingPoint {
   public:
     ShadingPoint() = default;  ///< no material: every call returns zero
     /// `u` ∈ [0, 1) (clamped; ignored for kDeterministic): the vertex's filter number.
+    /// `light_u` ∈ [0, 1), when given, is the number every eval(ωi) draws its light from instead
+    /// of what the view and texel draws leave of u. It must be independent of u (a renderer
+    /// passes a second stratified number): what the draws leave is itself a uniform number
+    /// independent of them, so the mean stays eval()'s value.
     ShadingPoint(const Material& material, const Uv& uv, const Vec3& wo, Filter filter,
-                 double u = 0);
+                 double u = 0, std::optional<double> light_u = {});
 
     Rgb eval(const Vec3& wi) const;
     LightSample sample(double xi1, double xi2) const;

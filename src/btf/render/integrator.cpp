@@ -39,16 +39,18 @@ double hit_weight(LightStrategy strategy, double material_pdf, double light_pdf)
 
 }  // namespace
 
-double primary_filter_number(uint64_t seed, uint64_t pixel, uint64_t pass) {
+FilterNumbers primary_filter_numbers(uint64_t seed, uint64_t pixel, uint64_t pass) {
     constexpr double kGolden = 0.61803398874989484820;  // (√5 − 1) / 2
+    constexpr double kSilver = 0.41421356237309504880;  // √2 − 1
     // A stream of its own: the sample streams (seed, pixel, pass) are left as they were.
-    const double start = Rng(seed ^ 0x5851F42D4C957F2Dull, pixel, ~uint64_t(0)).uniform();
-    const double x = start + double(pass) * kGolden;
-    return std::min(x - std::floor(x), 0x1.fffffffffffffp-1);
+    Rng starts(seed ^ 0x5851F42D4C957F2Dull, pixel, ~uint64_t(0));
+    const double s1 = starts.uniform(), s2 = starts.uniform();
+    auto frac = [](double x) { return std::min(x - std::floor(x), 0x1.fffffffffffffp-1); };
+    return {frac(s1 + double(pass) * kGolden), frac(s2 + double(pass) * kSilver)};
 }
 
 Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const IntegratorOptions& options,
-             FirstHit* first, std::optional<double> primary_filter_number) {
+             FirstHit* first, std::optional<FilterNumbers> primary) {
     Rgb L, beta{1, 1, 1};
     Ray ray = camera_ray;
     double previous_pdf = 0;  // the material pdf of the direction that made `ray`
@@ -85,9 +87,14 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
         // The vertex draws its filter term (stochastic filtering) once; every evaluation, sample
         // and density below goes through it.
         double u = 0;
-        if (options.filter == Filter::kStochastic && surface.draws_filter_number())
-            u = depth == 0 && primary_filter_number ? *primary_filter_number : rng.uniform();
-        const Vertex vertex = surface.vertex(hit.uv, wo, options.filter, u);
+        std::optional<double> light_u;
+        if (options.filter == Filter::kStochastic && surface.draws_filter_number()) {
+            if (depth == 0 && primary)
+                u = primary->u, light_u = primary->light;
+            else
+                u = rng.uniform();
+        }
+        const Vertex vertex = surface.vertex(hit.uv, wo, options.filter, u, light_u);
         if (depth == 0 && first) {
             first->found = true;
             first->albedo = surface.albedo(vertex);

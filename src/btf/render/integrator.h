@@ -39,21 +39,29 @@ struct FirstHit {
     Uv uv;
 };
 
-/// One sample of the radiance arriving along `ray`; `first` (optional) receives the first hit.
-/// `primary_filter_number` in [0, 1), when given, is the stochastic filter's number at the first
-/// surface (render() passes a stratified one: primary_filter_number()); every other vertex, and
-/// the first one without it, draws its number from `rng`.
-Rgb radiance(const Scene& scene, const Ray& ray, Rng& rng, const IntegratorOptions& options,
-             FirstHit* first = nullptr, std::optional<double> primary_filter_number = {});
+/// The stochastic filter's numbers at a path's first surface: `u` for the view and texel, `light`
+/// for the lights (ShadingPoint's light_u).
+struct FilterNumbers {
+    double u = 0, light = 0;
+};
 
-/// The stochastic filter's number at the first surface of sample `pass` of pixel `pixel`: the
-/// golden-ratio sequence over the passes, frac(s + pass · (√5 − 1) / 2), from a start s of the
-/// pixel's own (uniform, from the seed). Each number is uniform, so the estimate stays unbiased;
-/// the first n passes of a pixel are stratified for every n (the gaps between them take at most
-/// three sizes, the largest below 1.9 / n up to n = 3000), so the texel, view and light that the
-/// visible surface
-/// selects — with weights that hardly change between a pixel's samples — average out faster
-/// than with independent numbers.
-double primary_filter_number(uint64_t seed, uint64_t pixel, uint64_t pass);
+/// One sample of the radiance arriving along `ray`; `first` (optional) receives the first hit.
+/// `primary`, when given, holds the stochastic filter's numbers at the first surface (render()
+/// passes stratified ones: primary_filter_numbers()); every other vertex, and the first one
+/// without them, draws one number from `rng`.
+Rgb radiance(const Scene& scene, const Ray& ray, Rng& rng, const IntegratorOptions& options,
+             FirstHit* first = nullptr, std::optional<FilterNumbers> primary = {});
+
+/// The stochastic filter's numbers at the first surface of sample `pass` of pixel `pixel`: two
+/// Kronecker sequences over the passes, u = frac(s₁ + pass · (√5 − 1) / 2) and
+/// light = frac(s₂ + pass · (√2 − 1)), from starts of the pixel's own (uniform, from the seed).
+/// For one sample the two are independent uniform numbers, so the estimate stays unbiased; over
+/// the first n passes of a pixel each is stratified for every n (the gaps between its values
+/// take at most three sizes, the largest below 1.9 / n for u and 2.1 / n for light up to
+/// n = 3000), and the pairs cover the square evenly. So the view, texel and light that the
+/// visible surface draws — with weights that hardly change between a pixel's samples, the
+/// light's wherever the light comes from one small source — average out faster than with
+/// independent numbers.
+FilterNumbers primary_filter_numbers(uint64_t seed, uint64_t pixel, uint64_t pass);
 
 }  // namespace btf::render

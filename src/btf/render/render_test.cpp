@@ -348,30 +348,41 @@ TEST(Render, PixelsAreClampedAtZeroNotTerms) {
     }
 }
 
-// The first surface's filter numbers of a pixel walk the golden-ratio sequence: uniform starts
-// that differ between pixels, and every prefix of passes stratified.
+// The first surface's filter numbers of a pixel walk two Kronecker sequences: uniform starts that
+// differ between pixels, every prefix of passes stratified in each number, and the pairs spread
+// over the square.
 TEST(Render, PrimaryFilterNumbersAreStratified) {
     std::vector<double> starts;
     for (uint64_t pixel = 0; pixel < 64; ++pixel) {
-        starts.push_back(primary_filter_number(7, pixel, 0));
+        starts.push_back(primary_filter_numbers(7, pixel, 0).u);
         for (const int n : {8, 64, 500}) {
-            std::vector<double> x;
+            std::vector<double> u, light;
+            int quadrant[2][2] = {{0, 0}, {0, 0}};
             for (int pass = 0; pass < n; ++pass) {
-                x.push_back(primary_filter_number(7, pixel, uint64_t(pass)));
-                ASSERT_GE(x.back(), 0.0);
-                ASSERT_LT(x.back(), 1.0);
+                const FilterNumbers f = primary_filter_numbers(7, pixel, uint64_t(pass));
+                for (const double x : {f.u, f.light}) {
+                    ASSERT_GE(x, 0.0);
+                    ASSERT_LT(x, 1.0);
+                }
+                u.push_back(f.u), light.push_back(f.light);
+                ++quadrant[f.u >= 0.5][f.light >= 0.5];
             }
-            std::sort(x.begin(), x.end());
-            double gap = x.front() + 1 - x.back();
-            for (size_t i = 1; i < x.size(); ++i) gap = std::max(gap, x[i] - x[i - 1]);
-            EXPECT_LT(gap, 1.9 / n) << "pixel " << pixel << ", " << n << " passes";
+            for (auto [x, bound] : {std::pair{u, 1.9}, std::pair{light, 2.1}}) {
+                std::sort(x.begin(), x.end());
+                double gap = x.front() + 1 - x.back();
+                for (size_t i = 1; i < x.size(); ++i) gap = std::max(gap, x[i] - x[i - 1]);
+                EXPECT_LT(gap, bound / n) << "pixel " << pixel << ", " << n << " passes";
+            }
+            if (n >= 64)
+                for (const auto& row : quadrant)
+                    for (const int count : row) EXPECT_NEAR(count, n / 4.0, 0.05 * n);
         }
     }
     std::sort(starts.begin(), starts.end());
     EXPECT_EQ(std::unique(starts.begin(), starts.end()), starts.end());
     EXPECT_LT(starts.front(), 0.1);
     EXPECT_GT(starts.back(), 0.9);
-    EXPECT_NE(primary_filter_number(8, 0, 0), primary_filter_number(7, 0, 0));
+    EXPECT_NE(primary_filter_numbers(8, 0, 0).u, primary_filter_numbers(7, 0, 0).u);
 }
 
 // Where the stratified numbers pay: one camera ray (no jitter) onto a BTF whose neighbouring
@@ -401,7 +412,7 @@ TEST(Render, StratifiedPrimaryFilterNumbersConvergeFaster) {
             for (int pass = 0; pass < kSamples; ++pass) {
                 Rng a(1, pixel, uint64_t(pass)), b(1, pixel, uint64_t(pass));
                 stratified += radiance(scene, ray, a, stochastic, nullptr,
-                                       primary_filter_number(1, pixel, uint64_t(pass)))
+                                       primary_filter_numbers(1, pixel, uint64_t(pass)))
                                   .g;
                 independent += radiance(scene, ray, b, stochastic).g;
             }

@@ -73,7 +73,7 @@ RenderResult render(const Scene& scene, const RenderOptions& options, Progress& 
                     const bool want_aovs = options.aovs && pass == 0;
                     const Rgb L =
                         radiance(scene, ray, rng, options.integrator, want_aovs ? &first : nullptr,
-                                 primary_filter_number(options.seed, pixel, uint64_t(pass)));
+                                 primary_filter_numbers(options.seed, pixel, uint64_t(pass)));
                     double* p = &sum[pixel * 3];
                     // A NaN or infinite sample (a pdf underflow) would ruin the pixel for good.
                     if (std::isfinite(L.r) && std::isfinite(L.g) && std::isfinite(L.b))

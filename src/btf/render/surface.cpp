@@ -33,8 +33,9 @@ Vec3 cosine_direction(double xi1, double xi2) {
 
 // ---- BTF --------------------------------------------------------------------------------------
 
-Vertex BtfSurface::vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const {
-    return {uv, wo, ShadingPoint(*m_material, uv, wo, filter, u)};
+Vertex BtfSurface::vertex(const Uv& uv, const Vec3& wo, Filter filter, double u,
+                          std::optional<double> light_u) const {
+    return {uv, wo, ShadingPoint(*m_material, uv, wo, filter, u, light_u)};
 }
 
 Rgb BtfSurface::eval(const Vertex& v, const Vec3& wi) const {

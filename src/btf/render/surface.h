@@ -9,6 +9,7 @@
 /// radiance L_i is ∫ L_i · value / π dωi.
 
 #include <memory>
+#include <optional>
 
 #include "btf/core/material.h"
 #include "btf/core/math.h"
@@ -37,11 +38,12 @@ struct Vertex {
 class Surface {
   public:
     virtual ~Surface() = default;
-    /// The vertex at `uv` seen from `wo` (local frame). `filter` and `u` ∈ [0, 1) (the vertex's
-    /// filter number) matter to a BTF only: with Filter::kStochastic its texel and view are drawn
-    /// here, once.
-    virtual Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const {
-        (void)filter, (void)u;
+    /// The vertex at `uv` seen from `wo` (local frame). `filter`, `u` ∈ [0, 1) (the vertex's
+    /// filter number) and `light_u` (ShadingPoint's) matter to a BTF only: with
+    /// Filter::kStochastic its texel and view are drawn here, once.
+    virtual Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u,
+                          std::optional<double> light_u = {}) const {
+        (void)filter, (void)u, (void)light_u;
         return {uv, wo, {}};
     }
     /// True when vertex() draws with `u` under Filter::kStochastic (a BTF): the integrator takes
@@ -69,7 +71,8 @@ class BtfSurface final : public Surface {
     BtfSurface(std::shared_ptr<const Material> material,
                SamplingMode mode = SamplingMode::kMaterial)
         : m_material(std::move(material)), m_mode(mode) {}
-    Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u) const override;
+    Vertex vertex(const Uv& uv, const Vec3& wo, Filter filter, double u,
+                  std::optional<double> light_u = {}) const override;
     bool draws_filter_number() const override { return true; }
     Rgb eval(const Vertex& v, const Vec3& wi) const override;
     LightSample sample(const Vertex& v, double xi1, double xi2) const override;
