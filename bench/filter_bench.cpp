@@ -13,9 +13,17 @@
 //     (> 1: stochastic is closer at equal time);
 //  3. the mean radiance over those pixels of the longest renders against the reference's, as a
 //     multiple of its standard error (RMSE / √(3 · pixels)): unbiased renders stay within a few.
+// With --variance-spp N, first (and with --seconds "" only) the two costs that decide the
+// equal-time comparison, each measured apart, without a reference and its noise: the variance
+// of one path's estimate per filter, from two renders of N spp with different seeds
+// (E[(a − b)²] = 2 σ² / N over the BTF pixels' values), and the paths per second of those
+// renders, in the order deterministic, stochastic, stochastic, deterministic so that a drifting
+// machine speed falls on both. The equal-time RMSE ratio of unbiased renders follows:
+// √((σ²_det / rate_det) / (σ²_sto / rate_sto)).
 // Prints Markdown.
 //
 //   build/<dir>/filter_bench PACKAGE... [--size 256] [--seconds 5,20,60] [--reference-spp 1024]
+//                                       [--variance-spp N] [--variance-seed S]
 
 #include <fmt/format.h>
 
@@ -62,13 +70,20 @@ RenderOptions options_for(Filter filter) {
 int main(int argc, char** argv) {
     std::vector<std::string> packages;
     std::string seconds_text = "5,20,60";
-    int size = 256, reference_spp = 1024;
+    int size = 256, reference_spp = 1024, variance_spp = 0;
+    uint64_t variance_seed = 101;
     CLI::App app{"Stochastic against deterministic filtering in the renderer at equal time"};
     app.add_option("packages", packages, "materials (any package or UBO2014 file)")->required();
     app.add_option("--size", size, "image width for the RMSE measurements")->capture_default_str();
     app.add_option("--seconds", seconds_text, "render times, comma-separated")
         ->capture_default_str();
     app.add_option("--reference-spp", reference_spp, "samples per pixel of the reference")
+        ->capture_default_str();
+    app.add_option("--variance-spp", variance_spp,
+                   "samples per pixel of the variance and speed measurement (0: none)")
+        ->capture_default_str();
+    app.add_option("--variance-seed", variance_seed,
+                   "seed of the first variance render (the second takes the next)")
         ->capture_default_str();
     CLI11_PARSE(app, argc, argv);
     std::vector<double> seconds;
@@ -77,6 +92,49 @@ int main(int argc, char** argv) {
         for (std::string s; std::getline(in, s, ',');) seconds.push_back(std::stod(s));
     }
     try {
+        if (variance_spp > 0) {
+            std::printf(
+                "| material | spp | variance per path: deterministic / stochastic | stochastic / "
+                "deterministic | paths/s: deterministic / stochastic | equal-time RMSE, "
+                "deterministic / stochastic |\n|---|---|---|---|---|---|\n");
+            for (const std::string& path : packages) {
+                const std::shared_ptr<const Material> material(open_material(path));
+                const std::string name = std::filesystem::path(path).filename().string();
+                const Scene scene = scene_of(material, size);
+                for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
+                    RenderOptions o = options_for(filter);
+                    o.spp = 1;
+                    render::render(scene, o);
+                }
+                const std::vector<bool> mask = bench::btf_mask(scene);
+                Image image[2][2];
+                double paths[2] = {0, 0}, seconds_spent[2] = {0, 0};
+                const std::pair<int, int> order[] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+                for (const auto& [f, k] : order) {
+                    RenderOptions o =
+                        options_for(f == 0 ? Filter::kDeterministic : Filter::kStochastic);
+                    o.spp = variance_spp;
+                    o.seed = variance_seed + uint64_t(k);
+                    RenderResult r = render::render(scene, o);
+                    paths[f] += double(r.paths());
+                    seconds_spent[f] += r.seconds;
+                    image[f][k] = std::move(r.color);
+                }
+                double variance[2], rate[2];
+                for (int f = 0; f < 2; ++f) {
+                    const double d = bench::masked_error(image[f][0], image[f][1], mask).rmse;
+                    variance[f] = d * d * variance_spp / 2;
+                    rate[f] = paths[f] / seconds_spent[f];
+                }
+                std::printf("| %s | %d | %.5f / %.5f | %.3f | %.3f M / %.3f M | **%.3f×** |\n",
+                            name.c_str(), variance_spp, variance[0], variance[1],
+                            variance[1] / variance[0], rate[0] / 1e6, rate[1] / 1e6,
+                            std::sqrt((variance[0] / rate[0]) / (variance[1] / rate[1])));
+                std::fflush(stdout);
+            }
+            if (seconds.empty()) return 0;
+            std::printf("\n");
+        }
         std::vector<std::string> means;
         std::printf(
             "| material | T | spp: deterministic / stochastic | paths/s: deterministic / "
