@@ -3,8 +3,10 @@
 #include <libqhull_r/libqhull_r.h>
 
 #include <algorithm>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -26,6 +28,12 @@ constexpr double kInside = 1e-10;
 // The grid build uses a more generous test: extra candidates cost little, missing ones a lot.
 constexpr double kInsideBuild = 1e-7;
 constexpr int kAuxRingSize = 8;
+
+// x² + y² + z², for prepare() and weights4() alike (see octahedral_square()).
+template <typename V>
+inline V squared_length(V x, V y, V z) {
+    return x * x + y * y + z * z;
+}
 const double kSin45 = std::sqrt(0.5);
 
 std::string describe(const DirectionSet& set) {
@@ -259,7 +267,7 @@ void AngularInterpolator::triangulate() {
 inline Vec3 AngularInterpolator::prepare(const Vec3& direction) const {
     double x = direction.x, y = direction.y;
     double z = direction.z > 0 ? direction.z : 0.0;  // clamps to the horizon; NaN z → 0
-    const double len2 = x * x + y * y + z * z;
+    const double len2 = squared_length(x, y, z);
     if (!m_lifted && len2 >= 1e-200 && len2 <= 1e200) return {x, y, z};  // the usual case
     // Scaling by the largest component keeps tiny and huge vectors representable.
     const double m = std::max({std::abs(x), std::abs(y), z});
@@ -280,10 +288,26 @@ namespace {
 //     q = (x, y) / (|x| + |y| + z),   (u, v) = ((q_x + q_y + 1) / 2, (q_x − q_y + 1) / 2):
 // one division, no square root or arc tangent, and any length. The diamond |q_x| + |q_y| ≤ 1
 // becomes the square; the zenith is its centre, the horizon its boundary.
+//
+// This arithmetic, the triangle test and the weights below are templates over V, a double or a
+// vector of kWeightLanes doubles, so that weights() and weights4() run the same expressions
+// (and GCC contracts them into the same fused multiply-adds): their results are equal bit for
+// bit.
+template <typename V>
+inline V absolute(V x) {
+    return x < 0 ? -x : x;
+}
+template <typename V>
+inline void octahedral_square(V x, V y, V z, V& u, V& v) {
+    const V s = 1 / (absolute(x) + absolute(y) + z);
+    const V qx = x * s, qy = y * s;
+    u = 0.5 * (qx + qy + 1);
+    v = 0.5 * (qx - qy + 1);
+}
 inline SquarePoint octahedral_square(double x, double y, double z) {
-    const double s = 1 / (std::abs(x) + std::abs(y) + z);
-    const double qx = x * s, qy = y * s;
-    return {0.5 * (qx + qy + 1), 0.5 * (qx - qy + 1)};
+    SquarePoint p;
+    octahedral_square(x, y, z, p.u, p.v);
+    return p;
 }
 
 // Its inverse: the unit vector of a point of [0,1]².
@@ -294,21 +318,38 @@ Vec3 octahedral_direction(double u, double v) {
 
 // The unnormalized gnomonic coordinates l = M d of a prepared query in the triangle whose
 // inverse matrix M is `m` (rows), and whether the query lies in the triangle.
-inline bool contains(const double* m, const Vec3& d, double* l) {
-    l[0] = m[0] * d.x + m[1] * d.y + m[2] * d.z;
-    l[1] = m[3] * d.x + m[4] * d.y + m[5] * d.z;
-    l[2] = m[6] * d.x + m[7] * d.y + m[8] * d.z;
-    return std::min({l[0], l[1], l[2]}) >= -kInside * (l[0] + l[1] + l[2]);
+template <typename V>
+inline auto contains(const V* m, V x, V y, V z, V* l) {
+    l[0] = m[0] * x + m[1] * y + m[2] * z;
+    l[1] = m[3] * x + m[4] * y + m[5] * z;
+    l[2] = m[6] * x + m[7] * y + m[8] * z;
+    V smallest = l[0];
+    smallest = l[1] < smallest ? l[1] : smallest;
+    smallest = l[2] < smallest ? l[2] : smallest;
+    return smallest >= -kInside * (l[0] + l[1] + l[2]);
 }
+inline bool contains(const double* m, const Vec3& d, double* l) {
+    return contains(m, d.x, d.y, d.z, l);
+}
+
+// The weights of gnomonic coordinates l in a triangle whose vertices' real_mask is `real`:
+// negative ones (a query on an edge, within kInside) and auxiliary vertices' dropped, the rest
+// normalized. w[k] · inverse, with inverse = 1 / sum; sum ≤ 0 (or NaN) is the caller's case.
+template <typename V>
+inline void normalized_weights(const V* l, const V* real, V* w, V& sum, V& inverse) {
+    // Branch-free: whether a query lands on the rim (2 weights) or not (3) is unpredictable.
+    for (int k = 0; k < 3; ++k) w[k] = (l[k] < 0 ? V{} : l[k]) * real[k];
+    sum = w[0] + w[1] + w[2];
+    inverse = 1 / sum;
+}
+
+typedef int64_t WeightLaneInts __attribute__((vector_size(32)));  // masks of WeightLanes
 
 }  // namespace
 
 inline AngularWeights AngularInterpolator::finish(const Triangle& t, const double* l) const {
-    // Branch-free: whether a query lands on the rim (2 weights) or not (3) is unpredictable.
-    const double w0 = std::max(l[0], 0.0) * t.real_mask[0];
-    const double w1 = std::max(l[1], 0.0) * t.real_mask[1];
-    const double w2 = std::max(l[2], 0.0) * t.real_mask[2];
-    const double sum = w0 + w1 + w2;
+    double w[3], sum, inverse;
+    normalized_weights(l, t.real_mask.data(), w, sum, inverse);
     AngularWeights out;
     out.count = t.real;
     out.index = t.out_index;
@@ -318,9 +359,8 @@ inline AngularWeights AngularInterpolator::finish(const Triangle& t, const doubl
         out.weight = {1, 0, 0};
         return out;
     }
-    const double inv = 1 / sum;
-    out.weight = {static_cast<float>(w0 * inv), static_cast<float>(w1 * inv),
-                  static_cast<float>(w2 * inv)};
+    out.weight = {static_cast<float>(w[0] * inverse), static_cast<float>(w[1] * inverse),
+                  static_cast<float>(w[2] * inverse)};
     return out;
 }
 
@@ -346,6 +386,90 @@ AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
         if (contains(m_triangles[*c].inverse.data(), d, a)) return finish(m_triangles[*c], a);
     m_fallbacks.value.fetch_add(1, std::memory_order_relaxed);
     return weights_brute_force(direction);
+}
+
+inline void AngularInterpolator::transpose_rows(const Triangle* const* t, WeightLanes* lanes) {
+    typedef WeightLanes V;
+    typedef WeightLaneInts I;
+    for (int block = 0; block < 3; ++block) {
+        V r[4];
+        for (int j = 0; j < 4; ++j)
+            std::memcpy(&r[j], reinterpret_cast<const std::byte*>(t[j]) + 32 * block, sizeof r[j]);
+        const V t0 = __builtin_shuffle(r[0], r[1], I{0, 4, 2, 6});
+        const V t1 = __builtin_shuffle(r[0], r[1], I{1, 5, 3, 7});
+        const V t2 = __builtin_shuffle(r[2], r[3], I{0, 4, 2, 6});
+        const V t3 = __builtin_shuffle(r[2], r[3], I{1, 5, 3, 7});
+        lanes[4 * block + 0] = __builtin_shuffle(t0, t2, I{0, 1, 4, 5});
+        lanes[4 * block + 1] = __builtin_shuffle(t1, t3, I{0, 1, 4, 5});
+        lanes[4 * block + 2] = __builtin_shuffle(t0, t2, I{2, 3, 6, 7});
+        lanes[4 * block + 3] = __builtin_shuffle(t1, t3, I{2, 3, 6, 7});
+    }
+}
+
+void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
+                                   std::array<AngularWeights, 4>& out) const {
+    typedef WeightLanes V;
+    typedef WeightLaneInts I;
+    static_assert(kWeightLanes == 4, "the transposes are 4 × 4");
+    static_assert(offsetof(Triangle, real_mask) == 9 * sizeof(double));
+    const Vec3* const* d = directions.data();
+    V x = {d[0]->x, d[1]->x, d[2]->x, d[3]->x};
+    V y = {d[0]->y, d[1]->y, d[2]->y, d[3]->y};
+    V z = {d[0]->z, d[1]->z, d[2]->z, d[3]->z};
+    z = z > 0 ? z : V{};  // as prepare(): NaN z → 0
+    const V len2 = squared_length(x, y, z);
+    // Lanes that prepare() would change, and lanes whose cell's two candidates both miss, take
+    // weights() itself.
+    I scalar = m_lifted ? I{} - 1 : ~((len2 >= 1e-200) & (len2 <= 1e200));
+    x = scalar ? V{} + 1 : x, y = scalar ? V{} : y, z = scalar ? V{} : z;  // harmless stand-ins
+    V u, v;
+    octahedral_square(x, y, z, u, v);
+    const int res = m_lookup.resolution;
+    const I last = I{} + (res - 1);
+    I row = __builtin_convertvector(v * double(res), I);
+    I column = __builtin_convertvector(u * double(res), I);
+    row = row < last ? row : last;
+    column = column < last ? column : last;
+    const I cell = row * res + column;
+    const Triangle* ta[4];
+    const Triangle* tb[4];
+    for (int j = 0; j < 4; ++j) {
+        const std::array<int32_t, 2> pair = m_lookup_pairs[size_t(cell[j])];
+        ta[j] = &m_triangles[size_t(pair[0])];
+        tb[j] = &m_triangles[size_t(pair[1])];
+    }
+    // Each candidate's 12 doubles from inverse[0] (its matrix, then real_mask) in lanes: three
+    // 4 × 4 transposes of rows loaded whole, instead of 48 loads into single lanes.
+    V ma[12], mb[12];
+    transpose_rows(ta, ma);
+    transpose_rows(tb, mb);
+    V a[3], b[3];
+    const I in_a = contains(ma, x, y, z, a);
+    const I in_b = contains(mb, x, y, z, b);
+    scalar |= ~(in_a | in_b);
+    V l[3], real[3];
+    for (int k = 0; k < 3; ++k) {
+        l[k] = in_a ? a[k] : b[k];
+        real[k] = in_a ? ma[9 + k] : mb[9 + k];
+    }
+    V w[3], sum, inverse;
+    normalized_weights(l, real, w, sum, inverse);
+    const I positive = sum > 0;
+    for (int k = 0; k < 3; ++k) w[k] *= inverse;
+    for (int j = 0; j < 4; ++j) {
+        AngularWeights& o = out[size_t(j)];
+        if (scalar[j]) {
+            o = weights(*d[j]);
+            continue;
+        }
+        const Triangle& t = *(in_a[j] ? ta[j] : tb[j]);
+        o.count = t.real;
+        o.index = t.out_index;
+        o.weight = positive[j] ? std::array<float, 3>{static_cast<float>(w[0][j]),
+                                                      static_cast<float>(w[1][j]),
+                                                      static_cast<float>(w[2][j])}
+                               : std::array<float, 3>{1, 0, 0};
+    }
 }
 
 AngularWeights AngularInterpolator::weights_brute_force(const Vec3& direction) const {

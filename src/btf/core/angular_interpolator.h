@@ -101,6 +101,11 @@ class AngularInterpolator {
     AngularWeights weights(const Vec3& direction) const;
     AngularWeights weights(const Direction& d) const { return weights(d.vector()); }
 
+    /// weights() of 4 directions at once, for batches: the lanes of vectors of doubles do the
+    /// arithmetic of the four lookups together, and each result equals weights()'s bit for bit.
+    void weights4(const std::array<const Vec3*, 4>& directions,
+                  std::array<AngularWeights, 4>& out) const;
+
     /// The same weights found by testing every triangle instead of the grid's candidates (slow;
     /// the reference for tests).
     AngularWeights weights_brute_force(const Vec3& direction) const;
@@ -159,6 +164,12 @@ class AngularInterpolator {
     // kSquare: hemisphere_to_square(), the exported tables' map (the viewer's shader uses it).
     // kOctahedral: the turned octahedral map, one division per query, which weights() uses.
     enum class GridMap { kSquare, kOctahedral };
+
+    // The lanes of weights4(): vectors of 4 doubles.
+    static constexpr int kWeightLanes = 4;
+    typedef double WeightLanes __attribute__((vector_size(8 * kWeightLanes)));
+    // The first 12 doubles of 4 triangles (inverse, real_mask) as 12 vectors of their lanes.
+    static void transpose_rows(const Triangle* const* t, WeightLanes* lanes);
 
     Vec3 prepare(const Vec3& direction) const;
     AngularWeights finish(const Triangle& t, const double* gnomonic) const;

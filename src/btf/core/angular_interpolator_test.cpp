@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
 
 #include "btf/core/hemisphere.h"
@@ -398,6 +399,47 @@ TEST(AngularInterpolator, QueriesWithoutDirection) {
         const AngularWeights w = interp.weights(q);
         ASSERT_NO_FATAL_FAILURE(expect_valid(w, 81, q));
         EXPECT_NEAR(dense(w, 81)[57], 1, 1e-6);
+    }
+}
+
+// weights4() is weights() four at a time, bit for bit: on every kind of set (the lifted horizon
+// ring and a single direction included) and for every kind of query, the odd ones (zero, NaN,
+// below the horizon, subnormal, huge), which take weights() itself, among ordinary ones in the
+// other lanes.
+TEST(AngularInterpolator, LanesEqualOneByOne) {
+    const std::vector<DirectionSet> sets = {
+        DirectionSet::ubo81(), DirectionSet::dome151(), random_set(2024), ring("horizon8", 90, 8),
+        DirectionSet("one", {Direction::from_degrees(30, 40)}), ring("ring6", 40, 6)};
+    const std::vector<Vec3> odd = {{0, 0, 0},      {0, 0, -2},          {NAN, 1, 1},
+                                   {1, 1, NAN},    {1e-310, 0, 0},      {1e-150, 1e-150, 1e-150},
+                                   {1e120, 3e120, 2e120}, {INFINITY, 0, 1}, {0, 0, 1},
+                                   {1, 0, 0},      {-0.0, -0.0, 1},     {0.5, -0.5, 0}};
+    for (const DirectionSet& set : sets) {
+        const AngularInterpolator interp(set);
+        std::mt19937_64 rng(9);
+        std::vector<Vec3> queries;
+        for (int i = 0; i < 40000; ++i) queries.push_back(random_query(rng, i));
+        for (size_t i = 0; i < odd.size(); ++i) queries[i * 7 + 1] = odd[i];
+        for (int i = 0; i < set.size(); ++i) queries.push_back(set.vector(i));
+        while (queries.size() % 4 != 0) queries.push_back({0, 0, 1});
+        int differences = 0;
+        auto compare = [&](size_t i, const AngularWeights& lanes) {
+            const AngularWeights one = interp.weights(queries[i]);
+            const bool same = one.count == lanes.count && one.index == lanes.index &&
+                              std::memcmp(one.weight.data(), lanes.weight.data(),
+                                          sizeof one.weight) == 0;
+            if (!same && ++differences <= 3)
+                ADD_FAILURE() << set.name() << ": query " << i << " ("
+                              << queries[i].x << ", " << queries[i].y << ", " << queries[i].z
+                              << ")";
+        };
+        for (size_t i = 0; i < queries.size(); i += 4) {
+            std::array<AngularWeights, 4> four;
+            interp.weights4({&queries[i], &queries[i + 1], &queries[i + 2], &queries[i + 3]},
+                            four);
+            for (size_t j = 0; j < 4; ++j) compare(i + j, four[j]);
+        }
+        EXPECT_EQ(differences, 0) << set.name();
     }
 }
 

@@ -521,24 +521,32 @@ struct FactorMaterial::Impl {
     // chain hardly overlaps the next one's (fmf C = 32 stochastic batch: 116 ns per query with
     // draw() query by query, 102 ns by groups, measured).
     void draw_group(const Weighed* w, const double* numbers, Drawn* out) const {
-        Group u, t;
-        for (size_t j = 0; j < kGroup; ++j) u[j] = numbers[j];
-        Group wx[2], wy[2], wv[3], wl[3];
+        static_assert(kGroup == 4);
+        // Vectors built whole from their lanes' values: written lane by lane, they would go
+        // through memory, and each vector's load would wait for its lanes' stores.
+        auto lanes = [&](auto value) {
+            return Group{value(w[0]), value(w[1]), value(w[2]), value(w[3])};
+        };
+        auto mask_lanes = [&](auto is) {
+            return GroupMask{is(w[0]) ? -1 : 0, is(w[1]) ? -1 : 0, is(w[2]) ? -1 : 0,
+                             is(w[3]) ? -1 : 0};
+        };
+        Group u = {numbers[0], numbers[1], numbers[2], numbers[3]}, t;
+        // As draw(): the weights are floats, 1 − t rounded to float first.
+        const Group wx[2] = {lanes([](const Weighed& q) { return double(1 - q.lx.t); }),
+                             lanes([](const Weighed& q) { return double(q.lx.t); })};
+        const Group wy[2] = {lanes([](const Weighed& q) { return double(1 - q.ly.t); }),
+                             lanes([](const Weighed& q) { return double(q.ly.t); })};
+        Group wv[3], wl[3];
         GroupMask count_v[3], count_l[3];
-        for (size_t j = 0; j < kGroup; ++j) {
-            // As draw(): the weights are floats, 1 − t rounded to float first.
-            wx[0][j] = double(1 - w[j].lx.t);
-            wx[1][j] = double(w[j].lx.t);
-            wy[0][j] = double(1 - w[j].ly.t);
-            wy[1][j] = double(w[j].ly.t);
-            for (int i = 0; i < 3; ++i) {
-                wv[i][j] = double(w[j].vw.weight[size_t(i)]);
-                wl[i][j] = double(w[j].lw.weight[size_t(i)]);
-                count_v[i][j] = i + 1 == w[j].vw.count ? -1 : 0;
-                count_l[i][j] = i + 1 == w[j].lw.count ? -1 : 0;
-                if (i >= w[j].vw.count) wv[i][j] = 0;
-                if (i >= w[j].lw.count) wl[i][j] = 0;
-            }
+        for (int i = 0; i < 3; ++i) {
+            wv[i] = lanes([i](const Weighed& q) { return double(q.vw.weight[size_t(i)]); });
+            wl[i] = lanes([i](const Weighed& q) { return double(q.lw.weight[size_t(i)]); });
+            count_v[i] = mask_lanes([i](const Weighed& q) { return q.vw.count == i + 1; });
+            count_l[i] = mask_lanes([i](const Weighed& q) { return q.lw.count == i + 1; });
+            // As pick(): entries from the count on do not count.
+            wv[i] = mask_lanes([i](const Weighed& q) { return q.vw.count > i; }) ? wv[i] : Group{};
+            wl[i] = mask_lanes([i](const Weighed& q) { return q.lw.count > i; }) ? wl[i] : Group{};
         }
         const GroupMask last2[2] = {GroupMask{}, ~GroupMask{}};
         const GroupIndex v = pick_group<3>(wv, count_v, u);
@@ -1159,22 +1167,28 @@ struct FactorMaterial::Impl {
         double numbers[2][kGroup];
         const size_t n = queries.size();
         // A group's weights and numbers; lanes past the end draw from a single view and light.
+        static_assert(kGroup == 4);
+        const Vec3 zenith{0, 0, 1};
         auto weigh = [&](size_t first, Weighed* w, double* u) {
+            std::array<const Vec3*, kGroup> wo, wi;
             for (size_t j = 0; j < kGroup; ++j) {
                 if (first + j >= n) {
-                    w[j] = Weighed{};
-                    w[j].vw.count = w[j].lw.count = 1;
-                    w[j].vw.weight[0] = w[j].lw.weight[0] = 1;
+                    w[j].lx = w[j].ly = {};
+                    wo[j] = wi[j] = &zenith;
                     u[j] = 0;
                     continue;
                 }
                 const StochasticQuery& q = queries[first + j];
                 w[j].lx = wrap_lerp(q.uv.u, width);
                 w[j].ly = wrap_lerp(q.uv.v, height);
-                w[j].vw = views.weights(q.wo);
-                w[j].lw = light_lookup->weights(q.wi);
+                wo[j] = &q.wo;
+                wi[j] = &q.wi;
                 u[j] = clamp_filter_number(q.u);
             }
+            std::array<AngularWeights, kGroup> vw, lw;
+            views.weights4(wo, vw);
+            light_lookup->weights4(wi, lw);
+            for (size_t j = 0; j < kGroup; ++j) w[j].vw = vw[j], w[j].lw = lw[j];
         };
         const size_t groups = (n + kGroup - 1) / kGroup;
         if (groups > 0) weigh(0, weighed[0], numbers[0]);
