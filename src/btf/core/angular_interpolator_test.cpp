@@ -407,13 +407,24 @@ TEST(AngularInterpolator, QueriesWithoutDirection) {
 // below the horizon, subnormal, huge), which take weights() itself, among ordinary ones in the
 // other lanes.
 TEST(AngularInterpolator, LanesEqualOneByOne) {
-    const std::vector<DirectionSet> sets = {
-        DirectionSet::ubo81(), DirectionSet::dome151(), random_set(2024), ring("horizon8", 90, 8),
-        DirectionSet("one", {Direction::from_degrees(30, 40)}), ring("ring6", 40, 6)};
-    const std::vector<Vec3> odd = {{0, 0, 0},      {0, 0, -2},          {NAN, 1, 1},
-                                   {1, 1, NAN},    {1e-310, 0, 0},      {1e-150, 1e-150, 1e-150},
-                                   {1e120, 3e120, 2e120}, {INFINITY, 0, 1}, {0, 0, 1},
-                                   {1, 0, 0},      {-0.0, -0.0, 1},     {0.5, -0.5, 0}};
+    const std::vector<DirectionSet> sets = {DirectionSet::ubo81(),
+                                            DirectionSet::dome151(),
+                                            random_set(2024),
+                                            ring("horizon8", 90, 8),
+                                            DirectionSet("one", {Direction::from_degrees(30, 40)}),
+                                            ring("ring6", 40, 6)};
+    const std::vector<Vec3> odd = {{0, 0, 0},
+                                   {0, 0, -2},
+                                   {NAN, 1, 1},
+                                   {1, 1, NAN},
+                                   {1e-310, 0, 0},
+                                   {1e-150, 1e-150, 1e-150},
+                                   {1e120, 3e120, 2e120},
+                                   {INFINITY, 0, 1},
+                                   {0, 0, 1},
+                                   {1, 0, 0},
+                                   {-0.0, -0.0, 1},
+                                   {0.5, -0.5, 0}};
     for (const DirectionSet& set : sets) {
         const AngularInterpolator interp(set);
         std::mt19937_64 rng(9);
@@ -425,18 +436,16 @@ TEST(AngularInterpolator, LanesEqualOneByOne) {
         int differences = 0;
         auto compare = [&](size_t i, const AngularWeights& lanes) {
             const AngularWeights one = interp.weights(queries[i]);
-            const bool same = one.count == lanes.count && one.index == lanes.index &&
-                              std::memcmp(one.weight.data(), lanes.weight.data(),
-                                          sizeof one.weight) == 0;
+            const bool same =
+                one.count == lanes.count && one.index == lanes.index &&
+                std::memcmp(one.weight.data(), lanes.weight.data(), sizeof one.weight) == 0;
             if (!same && ++differences <= 3)
-                ADD_FAILURE() << set.name() << ": query " << i << " ("
-                              << queries[i].x << ", " << queries[i].y << ", " << queries[i].z
-                              << ")";
+                ADD_FAILURE() << set.name() << ": query " << i << " (" << queries[i].x << ", "
+                              << queries[i].y << ", " << queries[i].z << ")";
         };
         for (size_t i = 0; i < queries.size(); i += 4) {
             std::array<AngularWeights, 4> four;
-            interp.weights4({&queries[i], &queries[i + 1], &queries[i + 2], &queries[i + 3]},
-                            four);
+            interp.weights4({&queries[i], &queries[i + 1], &queries[i + 2], &queries[i + 3]}, four);
             for (size_t j = 0; j < 4; ++j) compare(i + j, four[j]);
         }
         EXPECT_EQ(differences, 0) << set.name();

@@ -203,6 +203,7 @@ template <int N>
 inline GroupIndex pick_group(const Group* w, const GroupMask* last, Group& u) {
     Group low[N];
     Group total{};
+#pragma GCC unroll 3
     for (int i = 0; i < N; ++i) {
         low[i] = total;
         total += w[i];
@@ -212,6 +213,7 @@ inline GroupIndex pick_group(const Group* w, const GroupMask* last, Group& u) {
     GroupMask taken{}, positive_last{};
     GroupIndex index{};
     Group next{};
+#pragma GCC unroll 3
     for (int i = 0; i < N; ++i) {
         const GroupMask positive = w[i] > 0;
         const GroupMask stop = positive & ((target < low[i] + w[i]) | last[i]) & ~taken;
@@ -486,9 +488,9 @@ struct FactorMaterial::Impl {
     // ---- selection (stochastic filter) --------------------------------------------------------
 
     // What a stochastic query draws from: its texel axes and both angular weights.
-    // stochastic_batch() looks them up a group of queries ahead of the picks, which wait for them:
-    // a lookup takes 59 ns from direction to weights, but 26 ns per lookup when independent ones
-    // overlap (AngularInterpolator::weights, measured).
+    // stochastic_batch() looks them up a group of queries ahead of the picks, which wait for them,
+    // four directions at once (AngularInterpolator::weights4): a lookup by weights() takes 59 ns
+    // from direction to weights, 26 ns when independent ones overlap (measured).
     struct Weighed {
         WrapLerp lx, ly;
         AngularWeights vw, lw;
