@@ -47,6 +47,7 @@
 #include "btf/codecs/factor/model.h"
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/btf_lookup.h"
+#include "btf/core/pick_lanes.h"
 #include "btf/util/error.h"
 #include "btf/util/half.h"
 
@@ -190,49 +191,11 @@ inline void put_value(uint16_t* out, float v) {
     *out = to_half(v);
 }
 
-// Queries drawn at once by eval_stochastic_batch(): one per lane of a vector of doubles.
-constexpr size_t kGroup = 4;
-typedef double Group __attribute__((vector_size(8 * kGroup)));
-typedef int64_t GroupMask __attribute__((vector_size(8 * kGroup)));  // lanes 0 or −1
-typedef int64_t GroupIndex __attribute__((vector_size(8 * kGroup)));
-
-// pick() of btf/core/material.h in every lane: weights w[i] (zero from each lane's count on),
-// last[i] the lanes whose count is i + 1, u each lane's number. Every candidate remaining number is
-// computed and the drawn one kept, so the division does not wait for the comparisons.
-template <int N>
-inline GroupIndex pick_group(const Group* w, const GroupMask* last, Group& u) {
-    Group low[N];
-    Group total{};
-#pragma GCC unroll 3
-    for (int i = 0; i < N; ++i) {
-        low[i] = total;
-        total += w[i];
-    }
-    const GroupMask some = total > 0;
-    const Group target = u * total;
-    GroupMask taken{}, positive_last{};
-    GroupIndex index{};
-    Group next{};
-#pragma GCC unroll 3
-    for (int i = 0; i < N; ++i) {
-        const GroupMask positive = w[i] > 0;
-        const GroupMask stop = positive & ((target < low[i] + w[i]) | last[i]) & ~taken;
-        const Group candidate = (target - low[i]) / w[i];
-        next = (Group)(((GroupMask)next & ~stop) | ((GroupMask)candidate & stop));
-        index = (index & ~stop) | (GroupIndex{} + i & stop);
-        positive_last = (positive_last & ~positive) | (GroupIndex{} + i & positive);
-        taken |= stop;
-    }
-    constexpr double kBelowOne = 0x1.fffffffffffffp-1;
-    // As std::clamp(next, 0, kBelowOne); no stop: kBelowOne and the last positive weight.
-    next = next < Group{} ? Group{} : next;
-    next = Group{} + kBelowOne < next ? Group{} + kBelowOne : next;
-    next = taken ? next : Group{} + kBelowOne;
-    index = taken ? index : positive_last;
-    // No positive weight: index 0, the number unchanged.
-    u = some ? next : u;
-    return some ? index : GroupIndex{};
-}
+// Queries drawn at once by eval_stochastic_batch(): one per lane of pick_lanes().
+constexpr size_t kGroup = kPickLanes;
+typedef PickLanes Group;
+typedef PickMask GroupMask;
+typedef PickMask GroupIndex;
 
 }  // namespace
 
@@ -551,11 +514,11 @@ struct FactorMaterial::Impl {
             wl[i] = mask_lanes([i](const Weighed& q) { return q.lw.count > i; }) ? wl[i] : Group{};
         }
         const GroupMask last2[2] = {GroupMask{}, ~GroupMask{}};
-        const GroupIndex v = pick_group<3>(wv, count_v, u);
-        const GroupIndex x = pick_group<2>(wx, last2, u);
-        const GroupIndex y = pick_group<2>(wy, last2, u);
+        const GroupIndex v = pick_lanes<3>(wv, count_v, u);
+        const GroupIndex x = pick_lanes<2>(wx, last2, u);
+        const GroupIndex y = pick_lanes<2>(wy, last2, u);
         t = u;
-        const GroupIndex l = pick_group<3>(wl, count_l, t);
+        const GroupIndex l = pick_lanes<3>(wl, count_l, t);
         for (size_t j = 0; j < kGroup; ++j) {
             const int sx = x[j] == 0 ? w[j].lx.i0 : w[j].lx.i1;
             const int sy = y[j] == 0 ? w[j].ly.i0 : w[j].ly.i1;

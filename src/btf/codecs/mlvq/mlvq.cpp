@@ -53,6 +53,7 @@
 
 #include "btf/codecs/factor/model.h"
 #include "btf/core/btf_lookup.h"
+#include "btf/core/pick_lanes.h"
 #include "btf/util/error.h"
 #include "btf/util/json_fields.h"
 #include "btf/util/limits.h"
@@ -1024,6 +1025,47 @@ void pipeline(size_t n, Stage&& stage) {
 
 }  // namespace
 
+template <typename Query>
+void MlvqMaterial::select_views(const Query* queries, const ViewLookup* view, size_t count,
+                                Selection* out) const {
+    static_assert(kPickLanes == 4);
+    WrapLerp lx[4], ly[4];
+    const MlvqWeights* w[4];
+    for (size_t i = 0; i < 4; ++i) {
+        const size_t k = i < count ? i : 0;  // lanes past the count repeat the first query
+        lx[i] = wrap_lerp(queries[k].uv.u, m_index.width);
+        ly[i] = wrap_lerp(queries[k].uv.v, m_index.height);
+        w[i] = &view[k].weights;
+    }
+    // Vectors built whole from their lanes' values (not lane by lane through memory).
+    auto lanes = [](auto value) { return PickLanes{value(0), value(1), value(2), value(3)}; };
+    PickLanes u = lanes([&](int i) { return filter_number(queries[i < int(count) ? i : 0].u); });
+    // As select_view(): the float products of the view's weights, 1 − t rounded to float.
+    PickLanes wv[4];
+    for (int node = 0; node < 4; ++node)
+        wv[node] = lanes([&](int i) {
+            const float product = w[i]->phi_v.weight[node >> 1] * w[i]->theta_v.weight[node & 1];
+            return double(product);
+        });
+    const PickLanes wx[2] = {lanes([&](int i) { return double(1 - lx[i].t); }),
+                             lanes([&](int i) { return double(lx[i].t); })};
+    const PickLanes wy[2] = {lanes([&](int i) { return double(1 - ly[i].t); }),
+                             lanes([&](int i) { return double(ly[i].t); })};
+    const PickMask last4[4] = {PickMask{}, PickMask{}, PickMask{}, ~PickMask{}};
+    const PickMask last2[2] = {PickMask{}, ~PickMask{}};
+    const PickMask node = pick_lanes<4>(wv, last4, u);
+    const PickMask px = pick_lanes<2>(wx, last2, u);
+    const PickMask py = pick_lanes<2>(wy, last2, u);
+    const int n_theta_v = m_decoded->grid().n_theta_v;
+    for (size_t i = 0; i < count; ++i) {
+        Selection& s = out[i];
+        s.u = u[i];
+        s.view = w[i]->phi_v.index[node[i] >> 1] * n_theta_v + w[i]->theta_v.index[node[i] & 1];
+        s.x = px[i] == 0 ? lx[i].i0 : lx[i].i1;
+        s.y = py[i] == 0 ? ly[i].i0 : ly[i].i1;
+    }
+}
+
 void MlvqMaterial::eval_stochastic_batch(std::span<const StochasticQuery> queries,
                                          std::span<Rgb> out) const {
     if (queries.size() != out.size())
@@ -1048,9 +1090,11 @@ void MlvqMaterial::eval_stochastic_batch(std::span<const StochasticQuery> querie
                 ViewLookup view[kBlock];
                 for (size_t i = 0; i < count; ++i) d[i] = q[i].wo;
                 lookup_views(grid, d, count, view);
+                Selection selection[kBlock];
+                select_views(q, view, count, selection);
                 for (size_t i = 0; i < count; ++i) {
                     s[i].view = view[i];
-                    s[i].selection = select_view(q[i].uv, view[i].weights, filter_number(q[i].u));
+                    s[i].selection = selection[i];
                     __builtin_prefetch(&p6(s[i].selection));
                 }
                 break;
@@ -1104,9 +1148,10 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
                 ViewLookup view[kBlock];
                 for (size_t i = 0; i < count; ++i) wo[i] = q[i].wo;
                 lookup_views(grid, wo, count, view);
+                Selection selection[kBlock];
+                select_views(q, view, count, selection);
                 for (size_t i = 0; i < count; ++i) {
-                    const Selection sel =
-                        select_view(q[i].uv, view[i].weights, filter_number(q[i].u));
+                    const Selection& sel = selection[i];
                     sample_selected_begin(sel, q[i].uv, q[i].wo, view[i], q[i].xi1, q[i].xi2, s[i]);
                     __builtin_prefetch(&p6(sel));
                 }

@@ -162,6 +162,11 @@ class MlvqMaterial final : public Material {
     void sample_finish(SampleState& s) const;
 
     Selection select_view(const Uv& uv, const MlvqWeights& view, double u) const;
+    /// select_view() of count ≤ kPickLanes queries (query i: uv(i), view(i), u(i)), their picks
+    /// in the lanes of pick_lanes(): the same draws bit for bit.
+    template <typename Query>
+    void select_views(const Query* queries, const ViewLookup* view, size_t count,
+                      Selection* out) const;
     void gather_selected(const Selection& s, Gathered& out) const;
     DecodedBooks::Corners light_corners(const Vec3& wi, const Vec3& wo) const;
     void selected_corners(SampleState* states, size_t n) const;
