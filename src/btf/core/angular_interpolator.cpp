@@ -390,19 +390,18 @@ AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
 
 inline void AngularInterpolator::transpose_rows(const Triangle* const* t, WeightLanes* lanes) {
     typedef WeightLanes V;
-    typedef WeightLaneInts I;
     for (int block = 0; block < 3; ++block) {
         V r[4];
         for (int j = 0; j < 4; ++j)
             std::memcpy(&r[j], reinterpret_cast<const std::byte*>(t[j]) + 32 * block, sizeof r[j]);
-        const V t0 = __builtin_shuffle(r[0], r[1], I{0, 4, 2, 6});
-        const V t1 = __builtin_shuffle(r[0], r[1], I{1, 5, 3, 7});
-        const V t2 = __builtin_shuffle(r[2], r[3], I{0, 4, 2, 6});
-        const V t3 = __builtin_shuffle(r[2], r[3], I{1, 5, 3, 7});
-        lanes[4 * block + 0] = __builtin_shuffle(t0, t2, I{0, 1, 4, 5});
-        lanes[4 * block + 1] = __builtin_shuffle(t1, t3, I{0, 1, 4, 5});
-        lanes[4 * block + 2] = __builtin_shuffle(t0, t2, I{2, 3, 6, 7});
-        lanes[4 * block + 3] = __builtin_shuffle(t1, t3, I{2, 3, 6, 7});
+        const V t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
+        const V t1 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
+        const V t2 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
+        const V t3 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+        lanes[4 * block + 0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+        lanes[4 * block + 1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+        lanes[4 * block + 2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+        lanes[4 * block + 3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
     }
 }
 
