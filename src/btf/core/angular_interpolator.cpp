@@ -338,6 +338,7 @@ inline bool contains(const double* m, const Vec3& d, double* l) {
 template <typename V>
 inline void normalized_weights(const V* l, const V* real, V* w, V& sum, V& inverse) {
     // Branch-free: whether a query lands on the rim (2 weights) or not (3) is unpredictable.
+#pragma GCC unroll 3
     for (int k = 0; k < 3; ++k) w[k] = (l[k] < 0 ? V{} : l[k]) * real[k];
     sum = w[0] + w[1] + w[2];
     inverse = 1 / sum;
@@ -390,8 +391,11 @@ AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
 
 inline void AngularInterpolator::transpose_rows(const Triangle* const* t, WeightLanes* lanes) {
     typedef WeightLanes V;
+    // Unrolled, so that the rows stay in registers rather than in an array in memory.
+#pragma GCC unroll 3
     for (int block = 0; block < 3; ++block) {
         V r[4];
+#pragma GCC unroll 4
         for (int j = 0; j < 4; ++j)
             std::memcpy(&r[j], reinterpret_cast<const std::byte*>(t[j]) + 32 * block, sizeof r[j]);
         const V t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
@@ -432,6 +436,7 @@ void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
     const I cell = row * res + column;
     const Triangle* ta[4];
     const Triangle* tb[4];
+#pragma GCC unroll 4
     for (int j = 0; j < 4; ++j) {
         const std::array<int32_t, 2> pair = m_lookup_pairs[size_t(cell[j])];
         ta[j] = &m_triangles[size_t(pair[0])];
@@ -447,6 +452,7 @@ void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
     const I in_b = contains(mb, x, y, z, b);
     scalar |= ~(in_a | in_b);
     V l[3], real[3];
+#pragma GCC unroll 4
     for (int k = 0; k < 3; ++k) {
         l[k] = in_a ? a[k] : b[k];
         real[k] = in_a ? ma[9 + k] : mb[9 + k];
@@ -454,7 +460,9 @@ void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
     V w[3], sum, inverse;
     normalized_weights(l, real, w, sum, inverse);
     const I positive = sum > 0;
+#pragma GCC unroll 4
     for (int k = 0; k < 3; ++k) w[k] *= inverse;
+#pragma GCC unroll 4
     for (int j = 0; j < 4; ++j) {
         AngularWeights& o = out[size_t(j)];
         if (scalar[j]) {

@@ -458,6 +458,11 @@ struct FactorMaterial::Impl {
         WrapLerp lx, ly;
         AngularWeights vw, lw;
     };
+    // The same for kGroup queries, as weights4() writes them.
+    struct WeighedGroup {
+        WrapLerp lx[kGroup], ly[kGroup];
+        std::array<AngularWeights, kGroup> vw, lw;
+    };
     // The picks of Material::select(), statement for statement, given the query's weights (from
     // this material's interpolators: the same triangulations of the same directions as
     // Material::view_interpolator() and light_interpolator(), so the same weights), with picks
@@ -485,33 +490,32 @@ struct FactorMaterial::Impl {
     // instead of one. The 4 dependent picks of a query (3 divisions) take 45 ns, and one query's
     // chain hardly overlaps the next one's (fmf C = 32 stochastic batch: 116 ns per query with
     // draw() query by query, 102 ns by groups, measured).
-    void draw_group(const Weighed* w, const double* numbers, Drawn* out) const {
+    void draw_group(const WeighedGroup& w, const double* numbers, Drawn* out) const {
         static_assert(kGroup == 4);
         // Vectors built whole from their lanes' values: written lane by lane, they would go
         // through memory, and each vector's load would wait for its lanes' stores.
-        auto lanes = [&](auto value) {
-            return Group{value(w[0]), value(w[1]), value(w[2]), value(w[3])};
-        };
-        auto mask_lanes = [&](auto is) {
-            return GroupMask{is(w[0]) ? -1 : 0, is(w[1]) ? -1 : 0, is(w[2]) ? -1 : 0,
-                             is(w[3]) ? -1 : 0};
+        auto lanes = [](auto value) { return Group{value(0), value(1), value(2), value(3)}; };
+        auto mask_lanes = [](auto is) {
+            return GroupMask{is(0) ? -1 : 0, is(1) ? -1 : 0, is(2) ? -1 : 0, is(3) ? -1 : 0};
         };
         Group u = {numbers[0], numbers[1], numbers[2], numbers[3]}, t;
         // As draw(): the weights are floats, 1 − t rounded to float first.
-        const Group wx[2] = {lanes([](const Weighed& q) { return double(1 - q.lx.t); }),
-                             lanes([](const Weighed& q) { return double(q.lx.t); })};
-        const Group wy[2] = {lanes([](const Weighed& q) { return double(1 - q.ly.t); }),
-                             lanes([](const Weighed& q) { return double(q.ly.t); })};
+        const Group wx[2] = {lanes([&](int j) { return double(1 - w.lx[j].t); }),
+                             lanes([&](int j) { return double(w.lx[j].t); })};
+        const Group wy[2] = {lanes([&](int j) { return double(1 - w.ly[j].t); }),
+                             lanes([&](int j) { return double(w.ly[j].t); })};
         Group wv[3], wl[3];
         GroupMask count_v[3], count_l[3];
+        // Loops unrolled: their vectors stay in registers rather than in arrays in memory.
+#pragma GCC unroll 3
         for (int i = 0; i < 3; ++i) {
-            wv[i] = lanes([i](const Weighed& q) { return double(q.vw.weight[size_t(i)]); });
-            wl[i] = lanes([i](const Weighed& q) { return double(q.lw.weight[size_t(i)]); });
-            count_v[i] = mask_lanes([i](const Weighed& q) { return q.vw.count == i + 1; });
-            count_l[i] = mask_lanes([i](const Weighed& q) { return q.lw.count == i + 1; });
+            wv[i] = lanes([&](int j) { return double(w.vw[j].weight[size_t(i)]); });
+            wl[i] = lanes([&](int j) { return double(w.lw[j].weight[size_t(i)]); });
+            count_v[i] = mask_lanes([&](int j) { return w.vw[j].count == i + 1; });
+            count_l[i] = mask_lanes([&](int j) { return w.lw[j].count == i + 1; });
             // As pick(): entries from the count on do not count.
-            wv[i] = mask_lanes([i](const Weighed& q) { return q.vw.count > i; }) ? wv[i] : Group{};
-            wl[i] = mask_lanes([i](const Weighed& q) { return q.lw.count > i; }) ? wl[i] : Group{};
+            wv[i] = mask_lanes([&](int j) { return w.vw[j].count > i; }) ? wv[i] : Group{};
+            wl[i] = mask_lanes([&](int j) { return w.lw[j].count > i; }) ? wl[i] : Group{};
         }
         const GroupMask last2[2] = {GroupMask{}, ~GroupMask{}};
         const GroupIndex v = pick_lanes<3>(wv, count_v, u);
@@ -519,11 +523,12 @@ struct FactorMaterial::Impl {
         const GroupIndex y = pick_lanes<2>(wy, last2, u);
         t = u;
         const GroupIndex l = pick_lanes<3>(wl, count_l, t);
+#pragma GCC unroll 4
         for (size_t j = 0; j < kGroup; ++j) {
-            const int sx = x[j] == 0 ? w[j].lx.i0 : w[j].lx.i1;
-            const int sy = y[j] == 0 ? w[j].ly.i0 : w[j].ly.i1;
-            out[j] = {int64_t(sy) * width + sx, w[j].vw.index[size_t(v[j])],
-                      w[j].lw.index[size_t(l[j])]};
+            const int sx = x[j] == 0 ? w.lx[j].i0 : w.lx[j].i1;
+            const int sy = y[j] == 0 ? w.ly[j].i0 : w.ly[j].i1;
+            out[j] = {int64_t(sy) * width + sx, w.vw[j].index[size_t(v[j])],
+                      w.lw[j].index[size_t(l[j])]};
         }
     }
 
@@ -1128,32 +1133,38 @@ struct FactorMaterial::Impl {
         constexpr size_t kAhead = kAheadStochastic;
         static_assert(kAhead % kGroup == 0 && kAhead + kGroup <= kRing);
         Drawn ring[kRing];
-        Weighed weighed[2][kGroup];
+        WeighedGroup weighed[2];
         double numbers[2][kGroup];
         const size_t n = queries.size();
         // A group's weights and numbers; lanes past the end draw from a single view and light.
         static_assert(kGroup == 4);
         const Vec3 zenith{0, 0, 1};
-        auto weigh = [&](size_t first, Weighed* w, double* u) {
+        auto weigh = [&](size_t first, WeighedGroup& w, double* u) {
+            // The queries of a group some groups ahead: their lines come from memory.
+            constexpr size_t kQueriesAhead = 8 * kGroup;
+            if (first + kQueriesAhead < n) {
+                const char* next = reinterpret_cast<const char*>(&queries[first + kQueriesAhead]);
+                for (size_t b = 0; b < kGroup * sizeof(StochasticQuery); b += 64)
+                    __builtin_prefetch(next + b);
+            }
             std::array<const Vec3*, kGroup> wo, wi;
+#pragma GCC unroll 4
             for (size_t j = 0; j < kGroup; ++j) {
                 if (first + j >= n) {
-                    w[j].lx = w[j].ly = {};
+                    w.lx[j] = w.ly[j] = {};
                     wo[j] = wi[j] = &zenith;
                     u[j] = 0;
                     continue;
                 }
                 const StochasticQuery& q = queries[first + j];
-                w[j].lx = wrap_lerp(q.uv.u, width);
-                w[j].ly = wrap_lerp(q.uv.v, height);
+                w.lx[j] = wrap_lerp(q.uv.u, width);
+                w.ly[j] = wrap_lerp(q.uv.v, height);
                 wo[j] = &q.wo;
                 wi[j] = &q.wi;
                 u[j] = clamp_filter_number(q.u);
             }
-            std::array<AngularWeights, kGroup> vw, lw;
-            views.weights4(wo, vw);
-            light_lookup->weights4(wi, lw);
-            for (size_t j = 0; j < kGroup; ++j) w[j].vw = vw[j], w[j].lw = lw[j];
+            views.weights4(wo, w.vw);
+            light_lookup->weights4(wi, w.lw);
         };
         const size_t groups = (n + kGroup - 1) / kGroup;
         if (groups > 0) weigh(0, weighed[0], numbers[0]);
