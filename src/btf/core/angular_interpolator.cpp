@@ -409,74 +409,112 @@ inline void AngularInterpolator::transpose_rows(const Triangle* const* t, Weight
     }
 }
 
-void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
-                                   std::array<AngularWeights, 4>& out) const {
+// G groups of 4 lanes, group g looked up in interpolator *in[g]: each step done for every group
+// before the next, so that the groups' chains of dependent steps (division, cell, candidate
+// pair, rows, division) overlap.
+template <int G>
+void AngularInterpolator::weights_lanes(const AngularInterpolator* const* in,
+                                        const Vec3* const* const* directions,
+                                        AngularWeights* const* out) {
     typedef WeightLanes V;
     typedef WeightLaneInts I;
     static_assert(kWeightLanes == 4, "the transposes are 4 × 4");
     static_assert(offsetof(Triangle, real_mask) == 9 * sizeof(double));
-    const Vec3* const* d = directions.data();
-    V x = {d[0]->x, d[1]->x, d[2]->x, d[3]->x};
-    V y = {d[0]->y, d[1]->y, d[2]->y, d[3]->y};
-    V z = {d[0]->z, d[1]->z, d[2]->z, d[3]->z};
-    z = z > 0 ? z : V{};  // as prepare(): NaN z → 0
-    const V len2 = squared_length(x, y, z);
-    // Lanes that prepare() would change, and lanes whose cell's two candidates both miss, take
-    // weights() itself.
-    I scalar = m_lifted ? I{} - 1 : ~((len2 >= 1e-200) & (len2 <= 1e200));
-    x = scalar ? V{} + 1 : x, y = scalar ? V{} : y, z = scalar ? V{} : z;  // harmless stand-ins
-    V u, v;
-    octahedral_square(x, y, z, u, v);
-    const int res = m_lookup.resolution;
-    const I last = I{} + (res - 1);
-    I row = __builtin_convertvector(v * double(res), I);
-    I column = __builtin_convertvector(u * double(res), I);
-    row = row < last ? row : last;
-    column = column < last ? column : last;
-    const I cell = row * res + column;
-    const Triangle* ta[4];
-    const Triangle* tb[4];
-#pragma GCC unroll 4
-    for (int j = 0; j < 4; ++j) {
-        const std::array<int32_t, 2> pair = m_lookup_pairs[size_t(cell[j])];
-        ta[j] = &m_triangles[size_t(pair[0])];
-        tb[j] = &m_triangles[size_t(pair[1])];
+    V x[G], y[G], z[G];
+    I scalar[G], cell[G];
+#pragma GCC unroll 2
+    for (int g = 0; g < G; ++g) {
+        const Vec3* const* d = directions[g];
+        x[g] = V{d[0]->x, d[1]->x, d[2]->x, d[3]->x};
+        y[g] = V{d[0]->y, d[1]->y, d[2]->y, d[3]->y};
+        z[g] = V{d[0]->z, d[1]->z, d[2]->z, d[3]->z};
+        z[g] = z[g] > 0 ? z[g] : V{};  // as prepare(): NaN z → 0
+        const V len2 = squared_length(x[g], y[g], z[g]);
+        // Lanes that prepare() would change, and lanes whose cell's two candidates both miss,
+        // take weights() itself.
+        scalar[g] = in[g]->m_lifted ? I{} - 1 : ~((len2 >= 1e-200) & (len2 <= 1e200));
+        // Harmless stand-ins in those lanes.
+        x[g] = scalar[g] ? V{} + 1 : x[g];
+        y[g] = scalar[g] ? V{} : y[g];
+        z[g] = scalar[g] ? V{} : z[g];
+        V u, v;
+        octahedral_square(x[g], y[g], z[g], u, v);
+        const int res = in[g]->m_lookup.resolution;
+        const I last = I{} + (res - 1);
+        I row = __builtin_convertvector(v * double(res), I);
+        I column = __builtin_convertvector(u * double(res), I);
+        row = row < last ? row : last;
+        column = column < last ? column : last;
+        cell[g] = row * res + column;
     }
-    // Each candidate's 12 doubles from inverse[0] (its matrix, then real_mask) in lanes: three
-    // 4 × 4 transposes of rows loaded whole, instead of 48 loads into single lanes.
-    V ma[12], mb[12];
-    transpose_rows(ta, ma);
-    transpose_rows(tb, mb);
-    V a[3], b[3];
-    const I in_a = contains(ma, x, y, z, a);
-    const I in_b = contains(mb, x, y, z, b);
-    scalar |= ~(in_a | in_b);
-    V l[3], real[3];
+    const Triangle* ta[G][4];
+    const Triangle* tb[G][4];
+#pragma GCC unroll 2
+    for (int g = 0; g < G; ++g)
 #pragma GCC unroll 4
-    for (int k = 0; k < 3; ++k) {
-        l[k] = in_a ? a[k] : b[k];
-        real[k] = in_a ? ma[9 + k] : mb[9 + k];
-    }
-    V w[3], sum, inverse;
-    normalized_weights(l, real, w, sum, inverse);
-    const I positive = sum > 0;
-#pragma GCC unroll 4
-    for (int k = 0; k < 3; ++k) w[k] *= inverse;
-#pragma GCC unroll 4
-    for (int j = 0; j < 4; ++j) {
-        AngularWeights& o = out[size_t(j)];
-        if (scalar[j]) {
-            o = weights(*d[j]);
-            continue;
+        for (int j = 0; j < 4; ++j) {
+            const std::array<int32_t, 2> pair = in[g]->m_lookup_pairs[size_t(cell[g][j])];
+            ta[g][j] = &in[g]->m_triangles[size_t(pair[0])];
+            tb[g][j] = &in[g]->m_triangles[size_t(pair[1])];
         }
-        const Triangle& t = *(in_a[j] ? ta[j] : tb[j]);
-        o.count = t.real;
-        o.index = t.out_index;
-        o.weight = positive[j] ? std::array<float, 3>{static_cast<float>(w[0][j]),
-                                                      static_cast<float>(w[1][j]),
-                                                      static_cast<float>(w[2][j])}
-                               : std::array<float, 3>{1, 0, 0};
+#pragma GCC unroll 2
+    for (int g = 0; g < G; ++g) {
+        // Each candidate's 12 doubles from inverse[0] (its matrix, then real_mask) in lanes:
+        // three 4 × 4 transposes of rows loaded whole, instead of 48 loads into single lanes.
+        V ma[12], mb[12];
+        transpose_rows(ta[g], ma);
+        transpose_rows(tb[g], mb);
+        V a[3], b[3];
+        const I in_a = contains(ma, x[g], y[g], z[g], a);
+        const I in_b = contains(mb, x[g], y[g], z[g], b);
+        scalar[g] |= ~(in_a | in_b);
+        V l[3], real[3];
+#pragma GCC unroll 4
+        for (int k = 0; k < 3; ++k) {
+            l[k] = in_a ? a[k] : b[k];
+            real[k] = in_a ? ma[9 + k] : mb[9 + k];
+        }
+        V w[3], sum, inverse;
+        normalized_weights(l, real, w, sum, inverse);
+        const I positive = sum > 0;
+#pragma GCC unroll 4
+        for (int k = 0; k < 3; ++k) w[k] *= inverse;
+#pragma GCC unroll 4
+        for (int j = 0; j < 4; ++j) {
+            AngularWeights& o = out[g][j];
+            if (scalar[g][j]) {
+                o = in[g]->weights(*directions[g][j]);
+                continue;
+            }
+            const Triangle& t = *(in_a[j] ? ta[g][j] : tb[g][j]);
+            o.count = t.real;
+            o.index = t.out_index;
+            o.weight = positive[j] ? std::array<float, 3>{static_cast<float>(w[0][j]),
+                                                          static_cast<float>(w[1][j]),
+                                                          static_cast<float>(w[2][j])}
+                                   : std::array<float, 3>{1, 0, 0};
+        }
     }
+}
+
+void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
+                                   std::array<AngularWeights, 4>& out) const {
+    const AngularInterpolator* in[1] = {this};
+    const Vec3* const* d[1] = {directions.data()};
+    AngularWeights* o[1] = {out.data()};
+    weights_lanes<1>(in, d, o);
+}
+
+void AngularInterpolator::weights4(const AngularInterpolator& a,
+                                   const std::array<const Vec3*, 4>& a_directions,
+                                   std::array<AngularWeights, 4>& a_out,
+                                   const AngularInterpolator& b,
+                                   const std::array<const Vec3*, 4>& b_directions,
+                                   std::array<AngularWeights, 4>& b_out) {
+    const AngularInterpolator* in[2] = {&a, &b};
+    const Vec3* const* d[2] = {a_directions.data(), b_directions.data()};
+    AngularWeights* o[2] = {a_out.data(), b_out.data()};
+    weights_lanes<2>(in, d, o);
 }
 
 AngularWeights AngularInterpolator::weights_brute_force(const Vec3& direction) const {

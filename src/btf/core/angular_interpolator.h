@@ -105,6 +105,14 @@ class AngularInterpolator {
     /// arithmetic of the four lookups together, and each result equals weights()'s bit for bit.
     void weights4(const std::array<const Vec3*, 4>& directions,
                   std::array<AngularWeights, 4>& out) const;
+    /// a.weights4(a_directions, a_out) and b.weights4(b_directions, b_out) in one: the steps of
+    /// both lookups interleaved, so that their chains of dependent steps overlap (a batch's view
+    /// and light lookups).
+    static void weights4(const AngularInterpolator& a,
+                         const std::array<const Vec3*, 4>& a_directions,
+                         std::array<AngularWeights, 4>& a_out, const AngularInterpolator& b,
+                         const std::array<const Vec3*, 4>& b_directions,
+                         std::array<AngularWeights, 4>& b_out);
 
     /// The same weights found by testing every triangle instead of the grid's candidates (slow;
     /// the reference for tests).
@@ -168,6 +176,9 @@ class AngularInterpolator {
     // The lanes of weights4(): vectors of 4 doubles.
     static constexpr int kWeightLanes = 4;
     typedef double WeightLanes __attribute__((vector_size(8 * kWeightLanes)));
+    template <int G>
+    static void weights_lanes(const AngularInterpolator* const* interpolators,
+                              const Vec3* const* const* directions, AngularWeights* const* out);
     // The first 12 doubles of 4 triangles (inverse, real_mask) as 12 vectors of their lanes.
     static void transpose_rows(const Triangle* const* t, WeightLanes* lanes);
 

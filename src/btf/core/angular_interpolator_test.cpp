@@ -448,6 +448,17 @@ TEST(AngularInterpolator, LanesEqualOneByOne) {
             interp.weights4({&queries[i], &queries[i + 1], &queries[i + 2], &queries[i + 3]}, four);
             for (size_t j = 0; j < 4; ++j) compare(i + j, four[j]);
         }
+        // Two lookups interleaved, here of the same interpolator (the batches pair a material's
+        // views with its lights): each group as by itself.
+        while (queries.size() % 8 != 0) queries.push_back({0, 0, 1});
+        for (size_t i = 0; i < queries.size(); i += 8) {
+            std::array<AngularWeights, 4> first, second;
+            AngularInterpolator::weights4(
+                interp, {&queries[i], &queries[i + 1], &queries[i + 2], &queries[i + 3]}, first,
+                interp, {&queries[i + 4], &queries[i + 5], &queries[i + 6], &queries[i + 7]},
+                second);
+            for (size_t j = 0; j < 4; ++j) compare(i + j, first[j]), compare(i + 4 + j, second[j]);
+        }
         EXPECT_EQ(differences, 0) << set.name();
     }
 }

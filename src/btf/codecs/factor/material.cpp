@@ -1163,8 +1163,7 @@ struct FactorMaterial::Impl {
                 wi[j] = &q.wi;
                 u[j] = clamp_filter_number(q.u);
             }
-            views.weights4(wo, w.vw);
-            light_lookup->weights4(wi, w.lw);
+            AngularInterpolator::weights4(views, wo, w.vw, *light_lookup, wi, w.lw);
         };
         const size_t groups = (n + kGroup - 1) / kGroup;
         if (groups > 0) weigh(0, weighed[0], numbers[0]);
