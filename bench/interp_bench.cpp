@@ -1,11 +1,13 @@
 // Angular interpolation throughput: AngularInterpolator::weights() on random directions (grid
-// lookup, and the brute-force search over all triangles as the reference), and the full 6-D
-// lookup (≤ 3 views × ≤ 3 lights × bilinear) with a trivial fetch.
+// lookup, four or eight at a time with weights4(), and the brute-force search over all triangles
+// as the reference), and the full 6-D lookup (≤ 3 views × ≤ 3 lights × bilinear) with a trivial
+// fetch.
 //
 //   build/<dir>/interp_bench --benchmark_min_time=1
 
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <random>
 #include <vector>
 
@@ -44,6 +46,34 @@ void BM_Weights(benchmark::State& state) {
     if (interp.fallback_count() != 0) state.SkipWithError("grid lookup fell back to brute force");
 }
 BENCHMARK(BM_Weights)->Arg(0)->Arg(1);
+
+// weights4(): four directions per call, and the two-interpolator form (a batch's views and
+// lights) with eight; items are directions, so the figures compare with BM_Weights.
+void BM_Weights4(benchmark::State& state) {
+    const AngularInterpolator interp(set_by_index(static_cast<int>(state.range(0))));
+    const std::vector<Vec3> dirs = random_directions(1 << 16, 1);
+    const bool paired = state.range(1) != 0;
+    size_t i = 0;
+    std::array<AngularWeights, 4> a, b;
+    for (auto _ : state) {
+        const std::array<const Vec3*, 4> first = {&dirs[i], &dirs[i + 1], &dirs[i + 2],
+                                                  &dirs[i + 3]};
+        if (paired) {
+            const std::array<const Vec3*, 4> second = {&dirs[i + 4], &dirs[i + 5], &dirs[i + 6],
+                                                       &dirs[i + 7]};
+            AngularInterpolator::weights4(interp, first, a, interp, second, b);
+            benchmark::DoNotOptimize(b);
+        } else {
+            interp.weights4(first, a);
+        }
+        benchmark::DoNotOptimize(a);
+        i = (i + 8) & (dirs.size() - 1);
+    }
+    state.SetItemsProcessed(state.iterations() * (paired ? 8 : 4));
+    state.SetLabel(interp.directions().name() + (paired ? ", two at once" : ""));
+    if (interp.fallback_count() != 0) state.SkipWithError("grid lookup fell back to brute force");
+}
+BENCHMARK(BM_Weights4)->Args({0, 0})->Args({1, 0})->Args({0, 1})->Args({1, 1});
 
 void BM_WeightsBruteForce(benchmark::State& state) {
     const AngularInterpolator interp(set_by_index(static_cast<int>(state.range(0))));
