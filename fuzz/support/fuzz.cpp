@@ -57,12 +57,31 @@ void exercise(const Material& material) {
     Rgb out[3];
     material.eval_batch(queries, out);
     for (const Rgb& v : out) consume(v);
+    // The stochastic batch: lanes of four (weights4(), pick_lanes()) and a partial group, with a
+    // zero and a downward direction among them, which take the one-by-one lookup.
+    const StochasticQuery stochastic[] = {
+        {kPositions[0], kDirections[0], kDirections[1], 0.1},
+        {kPositions[1], kDirections[2], kDirections[3], 0.5},
+        {kPositions[2], Vec3{0, 0, 0}, kDirections[0], 0.9},
+        {kPositions[3], kDirections[1], Vec3{0.2, 0.1, -1}, 0.999},
+        {kPositions[1], kDirections[3], kDirections[2], 0.3}};
+    Rgb stochastic_out[5];
+    material.eval_stochastic_batch(stochastic, stochastic_out);
+    for (const Rgb& v : stochastic_out) consume(v);
     // Only a material's own sampling: the generic sampler first tabulates the whole material
     // through eval(), which would make every input slow and test nothing new.
     if (material.native_sampling()) {
         const LightSample ls = material.sample(kPositions[1], kDirections[1], 0.3, 0.7);
         consume(ls.value);
         g_sink = g_sink + float(material.pdf(kPositions[1], kDirections[1], kDirections[2]));
+        const StochasticSampleQuery samples[] = {{kPositions[0], kDirections[1], 0.2, 0.3, 0.7},
+                                                 {kPositions[1], kDirections[2], 0.6, 0.9, 0.1},
+                                                 {kPositions[2], Vec3{0, 0, 0}, 0.4, 0.5, 0.5},
+                                                 {kPositions[3], kDirections[3], 0.8, 0.1, 0.9},
+                                                 {kPositions[1], kDirections[0], 0.0, 0.6, 0.2}};
+        LightSample drawn[5];
+        material.sample_stochastic_batch(samples, drawn);
+        for (const LightSample& d : drawn) consume(d.value);
     }
 }
 
