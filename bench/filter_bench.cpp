@@ -65,6 +65,25 @@ RenderOptions options_for(Filter filter) {
     return o;
 }
 
+// A material's scene, rendered once at 1 spp with each filter first (so that the measured
+// renders find the generic sampler's tables built), and the mask of its BTF pixels.
+struct Prepared {
+    std::string name;
+    Scene scene;
+    std::vector<bool> mask;
+};
+Prepared prepare(const std::string& path, int size) {
+    const std::shared_ptr<const Material> material(open_material(path));
+    Prepared p{std::filesystem::path(path).filename().string(), scene_of(material, size), {}};
+    for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
+        RenderOptions o = options_for(filter);
+        o.spp = 1;
+        render::render(p.scene, o);
+    }
+    p.mask = bench::btf_mask(p.scene);
+    return p;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -98,15 +117,7 @@ int main(int argc, char** argv) {
                 "deterministic | paths/s: deterministic / stochastic | equal-time RMSE, "
                 "deterministic / stochastic |\n|---|---|---|---|---|---|\n");
             for (const std::string& path : packages) {
-                const std::shared_ptr<const Material> material(open_material(path));
-                const std::string name = std::filesystem::path(path).filename().string();
-                const Scene scene = scene_of(material, size);
-                for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
-                    RenderOptions o = options_for(filter);
-                    o.spp = 1;
-                    render::render(scene, o);
-                }
-                const std::vector<bool> mask = bench::btf_mask(scene);
+                const auto [name, scene, mask] = prepare(path, size);
                 Image image[2][2];
                 double paths[2] = {0, 0}, seconds_spent[2] = {0, 0};
                 const std::pair<int, int> order[] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
@@ -141,15 +152,7 @@ int main(int argc, char** argv) {
             "stochastic | RMSE: deterministic | RMSE: stochastic | deterministic / stochastic "
             "|\n|---|---|---|---|---|---|---|\n");
         for (const std::string& path : packages) {
-            const std::shared_ptr<const Material> material(open_material(path));
-            const std::string name = std::filesystem::path(path).filename().string();
-            const Scene scene = scene_of(material, size);
-            for (const Filter filter : {Filter::kDeterministic, Filter::kStochastic}) {
-                RenderOptions o = options_for(filter);
-                o.spp = 1;
-                render::render(scene, o);
-            }
-            const std::vector<bool> mask = bench::btf_mask(scene);
+            const auto [name, scene, mask] = prepare(path, size);
             RenderOptions ref_options = options_for(Filter::kDeterministic);
             ref_options.spp = reference_spp;
             ref_options.seed = 12345;
