@@ -28,13 +28,13 @@ constexpr double kInside = 1e-10;
 // The grid build uses a more generous test: extra candidates cost little, missing ones a lot.
 constexpr double kInsideBuild = 1e-7;
 constexpr int kAuxRingSize = 8;
+const double kSin45 = std::sqrt(0.5);
 
 // x² + y² + z², for prepare() and weights4() alike (see octahedral_square()).
 template <typename V>
 inline V squared_length(V x, V y, V z) {
     return x * x + y * y + z * z;
 }
-const double kSin45 = std::sqrt(0.5);
 
 std::string describe(const DirectionSet& set) {
     return fmt::format("direction set '{}'", set.name().empty() ? "(unnamed)" : set.name());

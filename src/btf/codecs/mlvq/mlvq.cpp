@@ -871,33 +871,19 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
 
 // ---- stochastic filtering -----------------------------------------------------------------------
 
-// One term of eval()'s sum, drawn with probability equal to its weight there: a view node of the
-// 2 φv × 2 θv by φv weight × θv weight, then a texel of the 4 by its bilinear weight (x, then y),
-// in Material::select()'s order, each with pick() and what the previous draw left of u.
-Selection MlvqMaterial::select_view(const Uv& uv, const MlvqWeights& view, double u) const {
-    const WrapLerp lx = wrap_lerp(uv.u, m_index.width), ly = wrap_lerp(uv.v, m_index.height);
-    Selection s;
-    s.u = u;
-    // The products gather() weights the nodes with, in its order (φv major).
-    const float wv[4] = {view.phi_v.weight[0] * view.theta_v.weight[0],
-                         view.phi_v.weight[0] * view.theta_v.weight[1],
-                         view.phi_v.weight[1] * view.theta_v.weight[0],
-                         view.phi_v.weight[1] * view.theta_v.weight[1]};
-    const int node = pick<4>(wv, 4, s.u);
-    s.view =
-        view.phi_v.index[node >> 1] * m_decoded->grid().n_theta_v + view.theta_v.index[node & 1];
-    const float wx[2] = {1 - lx.t, lx.t}, wy[2] = {1 - ly.t, ly.t};
-    s.x = pick<2>(wx, 2, s.u) == 0 ? lx.i0 : lx.i1;
-    s.y = pick<2>(wy, 2, s.u) == 0 ? ly.i0 : ly.i1;
-    return s;
-}
-
-// The directions of a shading point go through lookup_views() and lookup_lights() with n = 1:
-// the code the batches run four queries at a time, so that both give the same bits.
+// The directions of a shading point go through lookup_views() and lookup_lights() with n = 1,
+// and its draw through select_views(): the code the batches run four queries at a time, so that
+// both give the same bits.
 Selection MlvqMaterial::select(const Uv& uv, const Vec3& wo, double u) const {
     ViewLookup view;
     lookup_views(m_books->grid, &wo, 1, &view);
-    return select_view(uv, view.weights, u);
+    const struct {
+        Uv uv;
+        double u;
+    } query{uv, u};
+    Selection s;
+    select_views(&query, &view, 1, &s);
+    return s;
 }
 
 // The selection's M entry as a one-component Gathered: luminance scale c_P6 · c_P4 · c_P3 and
@@ -1025,6 +1011,10 @@ void pipeline(size_t n, Stage&& stage) {
 
 }  // namespace
 
+// One term of eval()'s sum per query, drawn with probability equal to its weight there: a view
+// node of the 2 φv × 2 θv by φv weight × θv weight, then a texel of the 4 by its bilinear weight
+// (x, then y), in Material::select()'s order, each with pick_lanes() and what the previous draw
+// left of u; four queries in the lanes.
 template <typename Query>
 void MlvqMaterial::select_views(const Query* queries, const ViewLookup* view, size_t count,
                                 Selection* out) const {
@@ -1040,7 +1030,8 @@ void MlvqMaterial::select_views(const Query* queries, const ViewLookup* view, si
     // Vectors built whole from their lanes' values (not lane by lane through memory).
     auto lanes = [](auto value) { return PickLanes{value(0), value(1), value(2), value(3)}; };
     PickLanes u = lanes([&](int i) { return filter_number(queries[i < int(count) ? i : 0].u); });
-    // As select_view(): the float products of the view's weights, 1 − t rounded to float.
+    // The float products gather() weights the nodes with, in its order (φv major); 1 − t rounded
+    // to float.
     PickLanes wv[4];
     for (int node = 0; node < 4; ++node)
         wv[node] = lanes([&](int i) {

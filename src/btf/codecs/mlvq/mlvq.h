@@ -161,9 +161,8 @@ class MlvqMaterial final : public Material {
     void sample_beta(SampleState& s) const;
     void sample_finish(SampleState& s) const;
 
-    Selection select_view(const Uv& uv, const MlvqWeights& view, double u) const;
-    /// select_view() of count ≤ kPickLanes queries (query i: uv(i), view(i), u(i)), their picks
-    /// in the lanes of pick_lanes(): the same draws bit for bit.
+    /// The selections of count ≤ kPickLanes queries (query i: queries[i].uv, view[i],
+    /// queries[i].u), their picks in the lanes of pick_lanes(); select() runs it with one.
     template <typename Query>
     void select_views(const Query* queries, const ViewLookup* view, size_t count,
                       Selection* out) const;
