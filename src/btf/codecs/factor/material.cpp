@@ -1136,8 +1136,9 @@ struct FactorMaterial::Impl {
         WeighedGroup weighed[2];
         double numbers[2][kGroup];
         const size_t n = queries.size();
-        // A group's weights and numbers; lanes past the end draw from a single view and light.
-        static_assert(kGroup == 4);
+        // A group's weights and numbers; lanes past the end look up the zenith, and their draws
+        // are not read.
+        static_assert(kGroup == 4);  // weights4()'s lanes
         const Vec3 zenith{0, 0, 1};
         auto weigh = [&](size_t first, WeighedGroup& w, double* u) {
             // The queries of a group some groups ahead: their lines come from memory.
