@@ -229,12 +229,6 @@ double MlvqGrid::light_weight(int i, int j) const {
 
 OnionFrame::OnionFrame(double phi_v) : OnionFrame(std::cos(phi_v), std::sin(phi_v)) {}
 
-OnionFrame::OnionFrame(double c, double s) {
-    e_beta = {-s, c, 0};
-    e_alpha = {-c, -s, 0};
-    n = {0, 0, 1};
-}
-
 OnionAngles onion_from_direction(const Vec3& wi, double phi_v) {
     double alpha = 0, u = 0;
     onion_of_prepared(prepare(wi), std::cos(phi_v), std::sin(phi_v), alpha, u);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <random>
 #include <set>
@@ -158,6 +159,14 @@ TEST(MlvqMapping, RoundTripOverTheHemisphere) {
         // √(1 − u²) loses a few bits near the poles.
         expect_near(direction_from_onion_u(a.alpha, std::sin(a.beta), phi_v), wi, 1e-12);
     }
+}
+
+// The default frame (what lookup arrays hold before a lookup) is the frame of φv = 0, bit for bit.
+TEST(MlvqMapping, DefaultFrameIsAzimuthZero) {
+    const OnionFrame d, zero(0.0);
+    for (const auto& [a, b] : {std::pair{d.e_beta, zero.e_beta}, std::pair{d.e_alpha, zero.e_alpha},
+                               std::pair{d.n, zero.n}})
+        EXPECT_EQ(std::memcmp(&a, &b, sizeof(Vec3)), 0) << a.x << " " << a.y << " " << a.z;
 }
 
 TEST(MlvqMapping, SpecialDirections) {
