@@ -35,8 +35,8 @@ inline PickMask pick_lanes(const PickLanes* w, const PickMask* last, PickLanes& 
         const PickMask stop = positive & ((target < low[i] + w[i]) | last[i]) & ~taken;
         const PickLanes candidate = (target - low[i]) / w[i];
         next = (PickLanes)(((PickMask)next & ~stop) | ((PickMask)candidate & stop));
-        index = (index & ~stop) | (PickMask{} + i & stop);
-        positive_last = (positive_last & ~positive) | (PickMask{} + i & positive);
+        index = (index & ~stop) | ((PickMask{} + i) & stop);
+        positive_last = (positive_last & ~positive) | ((PickMask{} + i) & positive);
         taken |= stop;
     }
     constexpr double kBelowOne = 0x1.fffffffffffffp-1;
