@@ -45,11 +45,16 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <set>
 #include <tuple>
+#ifdef __AVX512F__
+#include <immintrin.h>
+#endif
 
 #include "btf/codecs/factor/model.h"
 #include "btf/core/btf_lookup.h"
@@ -602,14 +607,27 @@ struct MlvqMaterial::Mixture {
 
 namespace {
 
+// The fractional sample index within segment i (end values a, b; the cumulative mass `low` at
+// its start) where the mass reaches `target`: within a segment the mass up to t ∈ [0, 1] is
+// a t + (b − a) t² / 2, and t the root 2 r / (a + √(a² + 2 (b − a) r)) of a t + (b − a) t² / 2
+// = r, a form that stays exact as b → a (it is r / a there). In floats (a and b are) and without
+// branches: the draws are random, and a branch on them would mispredict.
+double invert_segment(int i, double low, float a, float b, double target) {
+    const float segment = 0.5f * (a + b);
+    const float r = std::clamp(float(target - low), 0.0f, segment);
+    const float denominator = a + std::sqrt(std::max(0.0f, a * a + 2 * (b - a) * r));
+    // A segment of no mass (or a crafted a < 0) has no root to find: its middle, or its start.
+    const float x = denominator > 0 ? 2 * r / denominator : segment > 0 ? 0.0f : 0.5f;
+    return i + double(std::clamp(x, 0.0f, 1.0f));
+}
+
 // Inverse CDF of a density that is linear between samples v[0 … n−1] (unit spacing), given the
-// target mass in [0, Σ trapezoids): the fractional sample index. Within a segment with end
-// values a, b the mass up to t ∈ [0, 1] is a t + (b − a) t² / 2. The segment is the number of
+// target mass in [0, Σ trapezoids): the fractional sample index. The segment is the number of
 // segments whose cumulative mass the target reaches (the last one takes any excess), counted
 // over all of them rather than found by a loop that stops there: a random target would
 // mispredict that loop's exit once per draw, and the draws of sampling are random.
 template <typename Value>
-double invert_linear(Value v, int n, double target) {
+double invert_linear_loop(Value v, int n, double target) {
     int i = 0;
     double low = 0, cumulative = 0, a = v(0);
     for (int k = 0; k + 2 < n; ++k) {
@@ -620,17 +638,74 @@ double invert_linear(Value v, int n, double target) {
         low = below ? cumulative : low;
         a = b;
     }
-    a = v(i);
-    const double b = v(i + 1), segment = 0.5 * (a + b);
-    const double r = std::clamp(target - low, 0.0, segment);
-    double x;
-    if (std::abs(b - a) < 1e-12 * std::max(a + b, 1e-300))
-        x = segment > 0 ? r / segment : 0.5;
-    else if (r > 0)  // the root of (b − a)/2 t² + a t − r = 0 in [0, 1], stable form
-        x = 2 * r / (a + std::sqrt(std::max(0.0, a * a + 2 * (b - a) * r)));
-    else  // r = 0 with a = 0 (or a crafted a < 0) would be 0 / 0
-        x = 0;
-    return i + std::clamp(x, 0.0, 1.0);
+    return invert_segment(i, low, v(i), v(i + 1), target);
+}
+
+#ifdef __AVX512F__
+constexpr int kRowLanes = 16;  ///< samples of a row that one vector holds
+
+// Lane i of the result is v[i − K] (0 below K).
+template <int K>
+__m512 lanes_up(__m512 v, __m512 zero) {
+    return _mm512_castsi512_ps(
+        _mm512_alignr_epi32(_mm512_castps_si512(v), _mm512_castps_si512(zero), kRowLanes - K));
+}
+float lane(__m512 v, int i) {
+    return _mm512_cvtss_f32(_mm512_permutexvar_ps(_mm512_set1_epi32(i), v));
+}
+
+// invert_linear_loop() for the n ≤ 16 samples in the lanes of v (float sums): the trapezoids
+// at once, their running sums in four shifted additions and the segment as the count of sums
+// the target reaches (one mask), without the loop's chain of n − 2 dependent additions.
+double invert_linear_lanes(__m512 v, int n, double target) {
+    const __m512 zero = _mm512_setzero_ps();
+    const __mmask16 segments = __mmask16((1u << (n - 1)) - 1);
+    const __m512 next = _mm512_castsi512_ps(
+        _mm512_alignr_epi32(_mm512_castps_si512(zero), _mm512_castps_si512(v), 1));  // v[i + 1]
+    __m512 c = _mm512_maskz_mul_ps(segments, _mm512_set1_ps(0.5f), _mm512_add_ps(v, next));
+    c = _mm512_add_ps(c, lanes_up<1>(c, zero));
+    c = _mm512_add_ps(c, lanes_up<2>(c, zero));
+    c = _mm512_add_ps(c, lanes_up<4>(c, zero));
+    c = _mm512_add_ps(c, lanes_up<8>(c, zero));
+    const __mmask16 below =
+        _mm512_mask_cmp_ps_mask(segments >> 1, c, _mm512_set1_ps(float(target)), _CMP_LE_OQ);
+    const int i = std::popcount(unsigned(below));
+    const double low = i > 0 ? lane(c, i - 1) : 0.0;
+    return invert_segment(i, low, lane(v, i), lane(v, i + 1), target);
+}
+#endif
+
+// The fractional α index at which the row masses rows[0 … n − 1] (floats) reach `target`.
+double invert_rows(const float* rows, int n, double target) {
+#ifdef __AVX512F__
+    if (n <= kRowLanes)
+        return invert_linear_lanes(_mm512_maskz_loadu_ps(__mmask16((1u << n) - 1), rows), n,
+                                   target);
+#endif
+    return invert_linear_loop([rows](int i) { return double(rows[i]); }, n, target);
+}
+
+// The fractional β index at which the luminance of the column t0 · row0 + t1 · row1 of an
+// entry (rows of n samples, row1 right after row0) reaches `target`.
+double invert_column(const DecodedBooks::Sample* row0, int n, float t0, float t1, double target) {
+#ifdef __AVX512F__
+    if (n <= kRowLanes) {
+        // The luminance halves are the low 16 bits of each sample's 32 (x86 is little-endian).
+        static_assert(sizeof(DecodedBooks::Sample) == 4 && offsetof(DecodedBooks::Sample, y) == 0);
+        const __mmask16 mask = __mmask16((1u << n) - 1);
+        auto luminance = [mask](const DecodedBooks::Sample* row) {
+            const __m512i samples = _mm512_maskz_loadu_epi32(mask, row);
+            return _mm512_cvtph_ps(_mm512_cvtepi32_epi16(samples));
+        };
+        const __m512 column = _mm512_add_ps(_mm512_mul_ps(_mm512_set1_ps(t0), luminance(row0)),
+                                            _mm512_mul_ps(_mm512_set1_ps(t1), luminance(row0 + n)));
+        return invert_linear_lanes(column, n, target);
+    }
+#endif
+    float y[2 * MlvqGrid::kMaxAxis], column[MlvqGrid::kMaxAxis];
+    DecodedBooks::luminances(row0, 2 * n, y);
+    for (int j = 0; j < n; ++j) column[j] = t0 * y[j] + t1 * y[n + j];
+    return invert_linear_loop([&column](int j) { return double(column[j]); }, n, target);
 }
 
 // Uniform hemisphere: (ξ1, ξ2) → direction, pdf 1 / 2π.
@@ -692,7 +767,7 @@ void MlvqMaterial::sample_alpha(SampleState& s) const {
     const int n_alpha = m_books->grid.n_alpha;
     const float* rows = m_decoded->rows(s.mix.g.index[c]);
     s.component = c;
-    s.x = invert_linear([rows](int i) { return double(rows[i]); }, n_alpha, share * rows[n_alpha]);
+    s.x = invert_rows(rows, n_alpha, share * rows[n_alpha]);
     s.i0 = std::min(int(s.x), n_alpha - 2);
 }
 
@@ -705,15 +780,12 @@ void MlvqMaterial::sample_beta(SampleState& s) const {
         return;
     }
     const double tx = s.x - s.i0;
-    // The two rows' luminances (adjacent in the entry), then their blend at α.
-    float y[2 * MlvqGrid::kMaxAxis], column[MlvqGrid::kMaxAxis];
-    DecodedBooks::luminances(s.mix.g.entry[s.component] + s.i0 * g.n_beta, 2 * g.n_beta, y);
-    const float t0 = float(1 - tx), t1 = float(tx);
-    for (int j = 0; j < g.n_beta; ++j) column[j] = t0 * y[j] + t1 * y[g.n_beta + j];
-    // The column's trapezoid sum is linear in the rows': their precomputed integrals blended.
+    // The column at α blends the two rows' luminances (adjacent in the entry); its trapezoid sum
+    // is linear in the rows': their precomputed integrals blended.
     const float* rows = m_decoded->rows(s.mix.g.index[s.component]);
     const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
-    s.y = invert_linear([&column](int j) { return double(column[j]); }, g.n_beta, s.xi2 * row_mass);
+    s.y = invert_column(s.mix.g.entry[s.component] + s.i0 * g.n_beta, g.n_beta, float(1 - tx),
+                        float(tx), s.xi2 * row_mass);
     const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
     const double u = -1 + 2 * s.y / (g.n_beta - 1);
     s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);

@@ -140,23 +140,22 @@ TEST(MlvqStochastic, SelectionDrawsEachTermByItsWeight) {
                 }
 }
 
+struct SamplingPoint {
+    Uv uv;
+    Vec3 wo;
+};
+
 // Native sampling of a stochastic shading point draws from its one M entry: the directions follow
 // the pdf it reports (χ² over equal-area bins), the pdf integrates to 1, and sample() reports
 // exactly pdf() and eval() of its direction, and their ratio.
-TEST(MlvqStochastic, SamplingFollowsItsPdf) {
-    const auto glossy = test::cached(*synth::make("lacquered_wood", 8, test::ubo_subset(8, 12), 3));
-    const auto material = mlvq_codec().open(mlvq_codec().encode(*glossy, small_grid()));
-    const struct {
-        Uv uv;
-        Vec3 wo;
-    } points[] = {{{0.31, 0.62}, Direction::from_degrees(0, 0).vector()},
-                  {{0.5625, 0.0625}, Direction::from_degrees(37, 65).vector()},
-                  {{0.9, 0.4}, Direction::from_degrees(71, 200).vector()}};
-    const double numbers[] = {0.13, 0.58, 0.91};
-    const double significance = 1 - std::pow(1 - 1e-3, 1.0 / 9);  // Šidák over the 9 tests
+void expect_sampling_follows_its_pdf(const Material& material,
+                                     const std::vector<SamplingPoint>& points,
+                                     const std::vector<double>& numbers) {
+    const double tests = double(points.size() * numbers.size());
+    const double significance = 1 - std::pow(1 - 1e-3, 1.0 / tests);  // Šidák over the tests
     for (const auto& p : points)
         for (const double u : numbers) {
-            const ShadingPoint sp(*material, p.uv, p.wo, Filter::kStochastic, u);
+            const ShadingPoint sp(material, p.uv, p.wo, Filter::kStochastic, u);
             test::ChiSquareOptions options;
             options.samples = 100000;
             const test::ChiSquareResult r =
@@ -172,6 +171,28 @@ TEST(MlvqStochastic, SamplingFollowsItsPdf) {
                 EXPECT_FLOAT_EQ(ls.weight.g, float(ls.value.g / ls.pdf));
             }
         }
+}
+
+TEST(MlvqStochastic, SamplingFollowsItsPdf) {
+    const auto glossy = test::cached(*synth::make("lacquered_wood", 8, test::ubo_subset(8, 12), 3));
+    const auto material = mlvq_codec().open(mlvq_codec().encode(*glossy, small_grid()));
+    expect_sampling_follows_its_pdf(*material,
+                                    {{{0.31, 0.62}, Direction::from_degrees(0, 0).vector()},
+                                     {{0.5625, 0.0625}, Direction::from_degrees(37, 65).vector()},
+                                     {{0.9, 0.4}, Direction::from_degrees(71, 200).vector()}},
+                                    {0.13, 0.58, 0.91});
+}
+
+// The α and β inversions take another path for rows longer than a vector's 16 lanes: the same
+// checks on a grid of 18 × 18 (α, β) samples.
+TEST(MlvqStochastic, SamplingFollowsItsPdfOnRowsLongerThanAVector) {
+    const auto glossy = test::cached(*synth::make("lacquered_wood", 4, test::ubo_subset(8, 12), 3));
+    Params params = small_grid();
+    params.set("n-alpha", "18");
+    params.set("n-beta", "18");
+    const auto material = mlvq_codec().open(mlvq_codec().encode(*glossy, params));
+    expect_sampling_follows_its_pdf(
+        *material, {{{0.4, 0.7}, Direction::from_degrees(37, 65).vector()}}, {0.2, 0.77});
 }
 
 // A term of zero luminance samples the hemisphere uniformly and says so.
