@@ -50,6 +50,7 @@
 #include "btf/core/pick_lanes.h"
 #include "btf/util/error.h"
 #include "btf/util/half.h"
+#include "btf/util/huge_pages.h"
 
 namespace btf::factor {
 
@@ -148,7 +149,8 @@ inline double clamp_filter_number(double u) {
 }
 
 // A zero-initialized array of float or half rows that starts on a cache line, so that rows whose
-// size is a multiple of 64 bytes (K = 32 in halves, K = 16 in floats) lie in whole lines.
+// size is a multiple of 64 bytes (K = 32 in halves, K = 16 in floats) lie in whole lines; on huge
+// pages where large (huge_pages.h).
 class LineAlignedRows {
   public:
     template <typename T>
@@ -156,8 +158,7 @@ class LineAlignedRows {
         const size_t bytes = (count * sizeof(T) + kCacheLine - 1) / kCacheLine * kCacheLine;
         m_data.reset();
         if (bytes == 0) return;
-        m_data.reset(static_cast<std::byte*>(std::aligned_alloc(kCacheLine, bytes)));
-        if (!m_data) throw std::bad_alloc();
+        m_data.reset(static_cast<std::byte*>(allocate_table(bytes, kCacheLine)));
         std::memset(m_data.get(), 0, bytes);
     }
     template <typename T>
@@ -171,7 +172,7 @@ class LineAlignedRows {
 
   private:
     struct Free {
-        void operator()(std::byte* p) const { std::free(p); }
+        void operator()(std::byte* p) const { free_table(p); }
     };
     std::unique_ptr<std::byte, Free> m_data;
 };

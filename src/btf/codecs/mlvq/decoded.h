@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "btf/codecs/mlvq/codebooks.h"
+#include "btf/util/huge_pages.h"
 
 #ifdef __F16C__
 #include <immintrin.h>
@@ -91,10 +92,11 @@ class DecodedBooks {
   private:
     MlvqGrid m_grid;
     size_t m_per_entry = 0;
-    std::vector<IndexScale> m_views;
-    std::vector<Sample> m_samples;
+    // Tables read at random (on huge pages where large: huge_pages.h).
+    std::vector<IndexScale, TableAllocator<IndexScale>> m_views;
+    std::vector<Sample, TableAllocator<Sample>> m_samples;
     float m_chroma_lo[2] = {0, 0}, m_chroma_step[2] = {0, 0};
-    std::vector<float> m_rows;
+    std::vector<float, TableAllocator<float>> m_rows;
 };
 
 }  // namespace btf::mlvq
