@@ -11,7 +11,7 @@ namespace btf {
 void* allocate_table(size_t bytes, size_t alignment) {
     const bool huge = bytes >= kHugePageBytes;
     if (huge) alignment = kHugePageBytes;
-    if (alignment < sizeof(void*)) alignment = sizeof(void*);
+    if (alignment < kCacheLineBytes) alignment = kCacheLineBytes;
     // aligned_alloc wants a multiple of the alignment.
     const size_t rounded = (bytes + alignment - 1) / alignment * alignment;
     if (rounded < bytes) throw std::bad_alloc();
@@ -23,6 +23,8 @@ void* allocate_table(size_t bytes, size_t alignment) {
     return p;
 }
 
-void free_table(void* p) noexcept { std::free(p); }
+void free_table(void* p) noexcept {
+    std::free(p);
+}
 
 }  // namespace btf

@@ -15,11 +15,14 @@ namespace btf {
 
 /// The size from which allocate_table() asks for huge pages (one huge page).
 inline constexpr size_t kHugePageBytes = size_t(2) << 20;
+/// The least alignment of a table: a cache line, so that a table's 64-byte records lie in
+/// one line each.
+inline constexpr size_t kCacheLineBytes = 64;
 
-/// `bytes` of uninitialized memory aligned to `alignment` (a power of two) and, from
-/// kHugePageBytes on, to kHugePageBytes with huge pages requested; std::bad_alloc when there is
-/// none. Freed with std::free(). The first touch of a page is what maps it, so a caller that
-/// fills the block right away gets the huge pages then.
+/// `bytes` of uninitialized memory aligned to `alignment` (a power of two; at least
+/// kCacheLineBytes) and, from kHugePageBytes on, to kHugePageBytes with huge pages requested;
+/// std::bad_alloc when there is none. Freed with std::free(). The first touch of a page is what
+/// maps it, so a caller that fills the block right away gets the huge pages then.
 void* allocate_table(size_t bytes, size_t alignment = alignof(std::max_align_t));
 
 /// A std::vector allocator over allocate_table().

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -11,15 +12,22 @@
 namespace btf {
 namespace {
 
-uintptr_t address(const void* p) { return reinterpret_cast<uintptr_t>(p); }
+uintptr_t address(const void* p) {
+    return reinterpret_cast<uintptr_t>(p);
+}
 
 struct Free {
     void operator()(void* p) const { free_table(p); }
 };
 
-// Small blocks get the alignment asked for, blocks of a huge page or more start on one, and
-// every byte asked for can be written (a sanitizer build checks the bounds).
+// Small blocks start on a cache line (or the alignment asked for, if larger), blocks of a huge
+// page or more on a huge page, and every byte asked for can be written (a sanitizer build checks
+// the bounds).
 TEST(HugePages, BlocksAreAlignedAndWholeSize) {
+    for (const size_t alignment : {size_t(1), size_t(4), size_t(256)}) {
+        const std::unique_ptr<void, Free> p(allocate_table(100, alignment));
+        EXPECT_EQ(address(p.get()) % std::max(alignment, kCacheLineBytes), 0u) << alignment;
+    }
     for (const size_t bytes : {size_t(0), size_t(1), size_t(100), size_t(4096)}) {
         const std::unique_ptr<void, Free> p(allocate_table(bytes, 64));
         ASSERT_NE(p, nullptr) << bytes;

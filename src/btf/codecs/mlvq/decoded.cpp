@@ -1,10 +1,13 @@
 #include "btf/codecs/mlvq/decoded.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 
 #include "btf/util/error.h"
+#include "btf/util/limits.h"
 #include "btf/util/parallel.h"
 
 #if defined(__AVX2__) && defined(__F16C__)
@@ -17,7 +20,10 @@ namespace btf::mlvq {
 DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     const MlvqGrid& g = m_grid;
     const int n_views = g.n_phi_v * g.n_theta_v;
-    m_per_entry = size_t(g.n_alpha) * g.n_beta;
+    m_tiles_alpha = tiles(g.n_alpha);
+    m_tiles_beta = tiles(g.n_beta);
+    m_per_entry = size_t(m_tiles_alpha) * size_t(m_tiles_beta) * kTile * kTile;
+    for (int j = 0; j < g.n_beta; ++j) m_beta_offsets.push_back(offset(g, 0, j));
 
     // P4 ∘ P3.
     m_views.resize(b.size_p4() * size_t(n_views));
@@ -42,10 +48,15 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     }
 
     // M entries: luminance c_P2 · P1 and chromaticity I2 → I1 → C per (α, β) sample.
+    // A package's M code-book is bounded by its section's size, its decoded tiles (1 KiB per
+    // entry at the paper's grid) by the allocation limit.
+    check_alloc(checked_bytes(b.size_m(), m_per_entry * sizeof(Sample)).value_or(UINT64_MAX),
+                "mlvq code-books", fmt::format("decoding the {} entries of M", b.size_m()));
     m_samples.resize(b.size_m() * m_per_entry);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
         const std::array<uint32_t, 2>& merge = b.m[size_t(e)];
         Sample* out = m_samples.data() + size_t(e) * m_per_entry;
+        const int tiles_alpha = tiles(g.n_alpha), tiles_beta = tiles(g.n_beta);
         for (int i = 0; i < g.n_alpha; ++i) {
             const IndexScale& e2 = b.p2[size_t(merge[0]) * g.n_alpha + i];
             const float* slice = b.p1.data() + size_t(e2.index) * g.n_beta;
@@ -53,8 +64,20 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
                 b.i1.data() + size_t(b.i2[size_t(merge[1]) * g.n_alpha + i]) * g.n_beta;
             for (int j = 0; j < g.n_beta; ++j) {
                 const std::array<uint8_t, 2>& c = codes[chroma[j]];
-                out[i * g.n_beta + j] = {
-                    Eigen::half_impl::float_to_half_rtne(e2.scale * slice[j]).x, {c[0], c[1]}};
+                const Sample value = {Eigen::half_impl::float_to_half_rtne(e2.scale * slice[j]).x,
+                                      {c[0], c[1]}};
+                // Into every tile that holds it (up to 2 × 2 where tiles overlap).
+                for (int ta = std::max(0, (i - 1) / kTileStep); ta < tiles_alpha; ++ta) {
+                    const int r = i - kTileStep * ta;
+                    if (r < 0) break;
+                    if (r >= kTile) continue;
+                    for (int tb = std::max(0, (j - 1) / kTileStep); tb < tiles_beta; ++tb) {
+                        const int q = j - kTileStep * tb;
+                        if (q < 0) break;
+                        if (q >= kTile) continue;
+                        out[((ta * tiles_beta + tb) * kTile + r) * kTile + q] = value;
+                    }
+                }
             }
         }
     });
@@ -64,13 +87,12 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     const size_t stride = size_t(g.n_alpha) + 1;
     m_rows.resize(b.size_m() * stride);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
-        const Sample* f = entry(uint32_t(e));
         float* r = m_rows.data() + size_t(e) * stride;
         double total = 0;
         for (int i = 0; i < g.n_alpha; ++i) {
             double sum = 0;
             for (int j = 0; j < g.n_beta; ++j) {
-                const double y = luminance(f[i * g.n_beta + j]);
+                const double y = luminance(sample(uint32_t(e), i, j));
                 sum += (j == 0 || j == g.n_beta - 1) ? 0.5 * y : y;
             }
             r[i] = float(sum);
@@ -81,10 +103,10 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
 }
 
 DecodedBooks::Corners::Corners(const MlvqGrid& g, const MlvqWeights& lw) {
-    for (int a = 0; a < 2; ++a) {
-        off[a] = lw.alpha.index[a] * g.n_beta + lw.beta.index[0];
+    off[0] = offset(g, lw.alpha.index[0], lw.beta.index[0]);
+    off[1] = off[0] + kTile;  // row α + 1 of the same tile
+    for (int a = 0; a < 2; ++a)
         for (int q = 0; q < 2; ++q) w[a][q] = lw.alpha.weight[a] * lw.beta.weight[q];
-    }
 }
 
 std::array<float, 3> DecodedBooks::blend(const Sample* const* entries, const float* y_scale,
@@ -130,26 +152,6 @@ std::array<float, 3> DecodedBooks::blend(const Sample* const* entries, const flo
     // weights of an entry sum to 1).
     return {y, m_chroma_lo[0] * c_total + m_chroma_step[0] * c1,
             m_chroma_lo[1] * c_total + m_chroma_step[1] * c2};
-}
-
-void DecodedBooks::luminances(const Sample* s, int n, float* out) {
-    int j = 0;
-#ifdef BTF_MLVQ_SIMD
-    // Eight samples (32 bytes) → the low halves of their 32-bit lanes → packed to 16 bits → floats.
-    auto eight = [s, out](int j) {
-        __m256i v;
-        std::memcpy(&v, s + j, sizeof v);
-        v = _mm256_and_si256(v, _mm256_set1_epi32(0xffff));
-        v = _mm256_permute4x64_epi64(_mm256_packus_epi32(v, v), 0x08);
-        _mm256_storeu_ps(out + j, _mm256_cvtph_ps(_mm256_castsi256_si128(v)));
-    };
-    for (; j + 8 <= n; j += 8) eight(j);
-    if (j < n && n >= 8) {  // the last eight again, overlapping: no scalar tail
-        eight(n - 8);
-        j = n;
-    }
-#endif
-    for (; j < n; ++j) out[j] = luminance(s[j]);
 }
 
 }  // namespace btf::mlvq

@@ -10,12 +10,18 @@
 ///  - entries: each M entry's 2-D light function on the (α, β) grid, 4 bytes per sample: the
 ///    luminance c_P2 · P1 as an IEEE half (relative error ≤ 2⁻¹¹, below the 8-bit storage of P1)
 ///    and the chromaticity I2 → I1 → C as its two 8-bit codes (exactly what a package stores; the
-///    codes are linear, so they are blended first and converted once). The 2 × 2 (α, β) corners
-///    of a lookup are two 8-byte reads, one per α row, that one SIMD shuffle decodes;
+///    codes are linear, so they are blended first and converted once). The samples lie in tiles
+///    of 4 × 4 that overlap their neighbours by one sample (64 bytes, a cache line each): the
+///    2 × 2 (α, β) corners of every lookup lie in one tile, so a random lookup reads one line of
+///    an entry (rows of 11 samples put them on two lines in about three lookups of four), and the
+///    16 prefetches of a query fit the core's miss buffers (at nα = nβ = 11 an entry takes 4 × 4
+///    tiles, 1024 bytes, against 484 untiled: 2.1× the memory for 1.7× fewer lines per lookup).
+///    The corners are two 8-byte reads, one per α row, that one SIMD shuffle decodes;
 ///
 /// plus each entry's row integrals for importance sampling.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -63,8 +69,36 @@ class DecodedBooks {
     const IndexScale* views(uint32_t p4) const {
         return m_views.data() + size_t(p4) * m_grid.n_phi_v * m_grid.n_theta_v;
     }
-    /// The nα × nβ samples of M entry `m`, α-major.
+    /// Tiles per axis of n samples: tile t holds samples 3t … 3t + 3 (kTile = 4, overlapping
+    /// its neighbours by one), so that every window (i, i + 1), i ≤ n − 2, lies in tile i / 3.
+    static constexpr int kTile = 4, kTileStep = 3;
+    static int tiles(int n) { return (n - 2) / kTileStep + 1; }
+    /// Offset of sample (i, j) within an entry, in the tile that holds the window at (i, j) (or
+    /// the last tile of an axis); sample (i + 1, j) is kTile further (the next row of the tile).
+    static int offset(const MlvqGrid& g, int i, int j) {
+        const int tiles_beta = tiles(g.n_beta);
+        const int a = std::min(i / kTileStep, tiles(g.n_alpha) - 1);
+        const int b = std::min(j / kTileStep, tiles_beta - 1);
+        return ((a * tiles_beta + b) * kTile + i - kTileStep * a) * kTile + j - kTileStep * b;
+    }
+    /// The samples of M entry `m`: tiles of 4 × 4 (α, β) samples (64 bytes, a cache line),
+    /// α-major; offset() finds a sample.
     const Sample* entry(uint32_t m) const { return m_samples.data() + size_t(m) * m_per_entry; }
+    const Sample& sample(uint32_t m, int i, int j) const { return entry(m)[offset(m_grid, i, j)]; }
+    /// Row α = i of an entry as offset(i, j) splits it: row_base(i) + beta_offset(j), and row
+    /// i + 1 of the same tiles kTile further; beta_offsets() has nβ of them.
+    int row_base(int i) const {
+        const int a = std::min(i / kTileStep, m_tiles_alpha - 1);
+        return (a * m_tiles_beta * kTile + i - kTileStep * a) * kTile;
+    }
+    const int32_t* beta_offsets() const { return m_beta_offsets.data(); }
+    /// The tiles that hold rows i and i + 1 of an entry (i ≤ nα − 2): tile_row_size() samples
+    /// from tile_row(m, i), for prefetching what sampling reads of them.
+    const Sample* tile_row(uint32_t m, int i) const {
+        const int a = std::min(i / kTileStep, m_tiles_alpha - 1);
+        return entry(m) + size_t(a) * tile_row_size();
+    }
+    size_t tile_row_size() const { return size_t(m_tiles_beta) * kTile * kTile; }
     /// Per M entry: the row integrals of its luminance over β (trapezoid, sample-index units)
     /// for each α, then their integral over α: nα + 1 values.
     const float* rows(uint32_t m) const {
@@ -82,8 +116,6 @@ class DecodedBooks {
         return Eigen::half_impl::half_to_float(Eigen::half_impl::raw_uint16_to_half(s.y));
 #endif
     }
-    /// luminance() of s[0 … n − 1] into out[0 … n − 1], eight at a time with F16C.
-    static void luminances(const Sample* s, int n, float* out);
     std::array<float, 2> chroma(const Sample& s) const {
         return {m_chroma_lo[0] + m_chroma_step[0] * s.chroma[0],
                 m_chroma_lo[1] + m_chroma_step[1] * s.chroma[1]};
@@ -91,7 +123,9 @@ class DecodedBooks {
 
   private:
     MlvqGrid m_grid;
+    int m_tiles_alpha = 0, m_tiles_beta = 0;
     size_t m_per_entry = 0;
+    std::vector<int32_t> m_beta_offsets;
     // Tables read at random (on huge pages where large: huge_pages.h).
     std::vector<IndexScale, TableAllocator<IndexScale>> m_views;
     std::vector<Sample, TableAllocator<Sample>> m_samples;

@@ -314,6 +314,32 @@ std::pair<Codebooks, TexelIndex> encode(const BtfSource& source, const Options& 
 
 namespace {
 
+// The batches run their queries in blocks of kBlock (the lanes of lookup_views())
+// through a software pipeline of `Stages` stages: iteration j runs stage 0 of block j, stage 1
+// of block j − 1, …, and each stage prefetches what the block's next stage reads (P6, the fused
+// view, the M entry), which then has a whole iteration of every stage's arithmetic to arrive.
+// A query's own operations and their order are those of the one-query path (eval(), or the
+// ShadingPoint's), so the results are the same bit for bit. `stage(k, first, count, slot)` runs
+// stage k of queries [first, first + count), whose state is at ring slot `slot` (of Stages).
+constexpr size_t kBlock = 4;
+template <size_t Stages, typename Stage>
+void pipeline(size_t n, Stage&& stage) {
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    for (size_t j = 0; j < blocks + Stages - 1; ++j)
+        for (size_t k = 0; k < Stages; ++k)
+            if (j >= k && j - k < blocks) {
+                const size_t b = j - k;
+                stage(k, b * kBlock, std::min(kBlock, n - b * kBlock), b % Stages);
+            }
+}
+
+// Hints every cache line of [begin, end].
+void prefetch_range(const void* begin, const void* end) {
+    const uintptr_t line = 64, last = reinterpret_cast<uintptr_t>(end) | (line - 1);
+    for (uintptr_t a = reinterpret_cast<uintptr_t>(begin) & ~(line - 1); a <= last; a += line)
+        __builtin_prefetch(reinterpret_cast<const void*>(a));
+}
+
 TexelCorners texel_corners(const Uv& uv, int width, int height) {
     const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
     const int64_t r0 = int64_t(ly.i0) * width, r1 = int64_t(ly.i1) * width;
@@ -351,11 +377,8 @@ struct MlvqMaterial::Gathered {
     float y_scale[16], c_weight[16];
     DecodedBooks::Corners corners;
 
-    // Hints the cache lines the corners of entry c lie on (the first and the last sample).
-    void prefetch(int c) const {
-        __builtin_prefetch(entry[c] + corners.off[0]);
-        __builtin_prefetch(entry[c] + corners.off[1] + 1);
-    }
+    // Hints the cache line the corners of entry c lie on (one tile: decoded.h).
+    void prefetch(int c) const { __builtin_prefetch(entry[c] + corners.off[0]); }
 };
 
 void MlvqMaterial::gather(const TexelCorners& corners, const MlvqWeights& w, Gathered& out) const {
@@ -421,47 +444,72 @@ Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
 void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
     if (queries.size() != out.size())
         fail("eval_batch: {} queries but {} outputs", queries.size(), out.size());
-    // Random queries miss the cache at every level of P6 → P4 ∘ P3 → M; a group of queries goes
-    // through the levels together, prefetching each level for the whole group before reading it,
-    // so that the misses of a group overlap instead of following one another.
-    constexpr size_t kGroup = 16;
-    MlvqWeights w[kGroup], looked_up[kGroup];
-    TexelCorners corners[kGroup];
-    Gathered g[kGroup];
-    Vec3 wi[kGroup], wo[kGroup];
-    int slot[kGroup];
-    MlvqWeights carried;  // the last query's weights, for a run that goes on into the next group
+    // Random queries miss the cache at every level of P6 → P4 ∘ P3 → M. Blocks of kBlock go
+    // through the levels in a software pipeline (iteration j: the directions, texels and P6 of
+    // block j, P4 ∘ P3 of block j − 1, the M entries of block j − 2, the blend of block j − 3),
+    // each level prefetching what the next one reads. The last two run query by query in turn,
+    // so that the 16 entry prefetches of one query alternate with the blend of another: a burst
+    // of more prefetches than the core has miss buffers stalls the instructions behind it, and
+    // the blends with them.
+    constexpr size_t kStages = 4;
+    struct State {
+        MlvqWeights w;
+        TexelCorners corners;
+        Gathered g;
+    };
+    State ring[kStages][kBlock];
+    const MlvqGrid& grid = m_books->grid;
+    MlvqWeights carried;  // the last query's weights, for a run that goes on into the next block
     auto same = [](const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; };
-    for (size_t begin = 0; begin < queries.size(); begin += kGroup) {
-        const size_t n = std::min(kGroup, queries.size() - begin);
-        const Query* q = queries.data() + begin;
-        // Directions: one lookup per run of equal (ωi, ωo), four runs at a time.
-        size_t runs = 0;
-        for (size_t i = 0; i < n; ++i) {
-            const Query* previous = begin + i > 0 ? q + i - 1 : nullptr;
-            if (!previous || !same(q[i].wi, previous->wi) || !same(q[i].wo, previous->wo)) {
-                wi[runs] = q[i].wi;
-                wo[runs] = q[i].wo;
-                ++runs;
+    const size_t n = queries.size(), blocks = (n + kBlock - 1) / kBlock;
+    auto count_of = [&](size_t b) { return std::min(kBlock, n - b * kBlock); };
+    for (size_t j = 0; j < blocks + kStages - 1; ++j) {
+        if (j < blocks) {  // directions (one lookup per run of equal ωi, ωo) and texels; P6
+            const size_t first = j * kBlock, count = count_of(j);
+            const Query* q = queries.data() + first;
+            State* s = ring[j % kStages];
+            Vec3 wi[kBlock], wo[kBlock];
+            MlvqWeights looked_up[kBlock];
+            int run[kBlock];
+            size_t runs = 0;
+            for (size_t i = 0; i < count; ++i) {
+                const Query* previous = first + i > 0 ? q + i - 1 : nullptr;
+                if (!previous || !same(q[i].wi, previous->wi) || !same(q[i].wo, previous->wo)) {
+                    wi[runs] = q[i].wi;
+                    wo[runs] = q[i].wo;
+                    ++runs;
+                }
+                run[i] = int(runs) - 1;  // −1: the run goes on from the previous block
             }
-            slot[i] = int(runs) - 1;  // −1: the run goes on from the previous group
+            lookup(grid, wi, wo, runs, looked_up);
+            for (size_t i = 0; i < count; ++i) {
+                s[i].w = run[i] >= 0 ? looked_up[run[i]] : carried;
+                s[i].corners = texel_corners(q[i].uv, m_index.width, m_index.height);
+                for (int k = 0; k < 4; ++k)
+                    __builtin_prefetch(&m_index.p6[size_t(s[i].corners.texel[k])]);
+            }
+            carried = s[count - 1].w;
         }
-        lookup(m_books->grid, wi, wo, runs, looked_up);
-        for (size_t i = 0; i < n; ++i) {
-            w[i] = slot[i] >= 0 ? looked_up[slot[i]] : carried;
-            corners[i] = texel_corners(q[i].uv, m_index.width, m_index.height);
-            for (int k = 0; k < 4; ++k)
-                __builtin_prefetch(&m_index.p6[size_t(corners[i].texel[k])]);
+        if (j >= 1 && j - 1 < blocks) {  // P4 ∘ P3
+            State* s = ring[(j - 1) % kStages];
+            for (size_t i = 0, count = count_of(j - 1); i < count; ++i)
+                prefetch_views(s[i].corners, s[i].w);
         }
-        carried = w[n - 1];
-        for (size_t i = 0; i < n; ++i) prefetch_views(corners[i], w[i]);
-        for (size_t i = 0; i < n; ++i) {
-            gather(corners[i], w[i], g[i]);
-            for (int c = 0; c < g[i].count; ++c) g[i].prefetch(c);
-        }
-        for (size_t i = 0; i < n; ++i) {
-            const std::array<float, 3> p = combine(g[i]);
-            out[begin + i] = from_planes(m_books->colour, p[0], p[1], p[2]);
+        const bool gathering = j >= 2 && j - 2 < blocks, blending = j >= 3 && j - 3 < blocks;
+        State* gather_block = ring[(j + kStages - 2) % kStages];
+        State* blend_block = ring[(j + kStages - 3) % kStages];
+        const size_t gather_count = gathering ? count_of(j - 2) : 0;
+        const size_t blend_count = blending ? count_of(j - 3) : 0;
+        for (size_t i = 0; i < kBlock; ++i) {
+            if (i < gather_count) {  // the M entries
+                State& s = gather_block[i];
+                gather(s.corners, s.w, s.g);
+                for (int c = 0; c < s.g.count; ++c) s.g.prefetch(c);
+            }
+            if (i < blend_count) {
+                const std::array<float, 3> p = combine(blend_block[i].g);
+                out[(j - 3) * kBlock + i] = from_planes(m_books->colour, p[0], p[1], p[2]);
+            }
         }
     }
 }
@@ -685,26 +733,34 @@ double invert_rows(const float* rows, int n, double target) {
     return invert_linear_loop([rows](int i) { return double(rows[i]); }, n, target);
 }
 
-// The fractional β index at which the luminance of the column t0 · row0 + t1 · row1 of an
-// entry (rows of n samples, row1 right after row0) reaches `target`.
-double invert_column(const DecodedBooks::Sample* row0, int n, float t0, float t1, double target) {
+// The fractional β index at which the luminance of the column t0 · (row i0) + t1 · (row i0 + 1)
+// of an entry (decoded.h: tiles) reaches `target`.
+double invert_column(const DecodedBooks& d, const DecodedBooks::Sample* entry, int i0, float t0,
+                     float t1, double target) {
+    const int n = d.grid().n_beta;
+    const DecodedBooks::Sample* row0 = entry + d.row_base(i0);
+    const DecodedBooks::Sample* row1 = row0 + DecodedBooks::kTile;
+    const int32_t* at = d.beta_offsets();
 #ifdef __AVX512F__
     if (n <= kRowLanes) {
         // The luminance halves are the low 16 bits of each sample's 32 (x86 is little-endian).
         static_assert(sizeof(DecodedBooks::Sample) == 4 && offsetof(DecodedBooks::Sample, y) == 0);
         const __mmask16 mask = __mmask16((1u << n) - 1);
-        auto luminance = [mask](const DecodedBooks::Sample* row) {
-            const __m512i samples = _mm512_maskz_loadu_epi32(mask, row);
+        const __m512i index = _mm512_maskz_loadu_epi32(mask, at);
+        auto luminance = [mask, index](const DecodedBooks::Sample* row) {
+            const __m512i samples =
+                _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), mask, index, row, 4);
             return _mm512_cvtph_ps(_mm512_cvtepi32_epi16(samples));
         };
         const __m512 column = _mm512_add_ps(_mm512_mul_ps(_mm512_set1_ps(t0), luminance(row0)),
-                                            _mm512_mul_ps(_mm512_set1_ps(t1), luminance(row0 + n)));
+                                            _mm512_mul_ps(_mm512_set1_ps(t1), luminance(row1)));
         return invert_linear_lanes(column, n, target);
     }
 #endif
-    float y[2 * MlvqGrid::kMaxAxis], column[MlvqGrid::kMaxAxis];
-    DecodedBooks::luminances(row0, 2 * n, y);
-    for (int j = 0; j < n; ++j) column[j] = t0 * y[j] + t1 * y[n + j];
+    float column[MlvqGrid::kMaxAxis];
+    for (int j = 0; j < n; ++j)
+        column[j] =
+            t0 * DecodedBooks::luminance(row0[at[j]]) + t1 * DecodedBooks::luminance(row1[at[j]]);
     return invert_linear_loop([&column](int j) { return double(column[j]); }, n, target);
 }
 
@@ -784,8 +840,8 @@ void MlvqMaterial::sample_beta(SampleState& s) const {
     // is linear in the rows': their precomputed integrals blended.
     const float* rows = m_decoded->rows(s.mix.g.index[s.component]);
     const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
-    s.y = invert_column(s.mix.g.entry[s.component] + s.i0 * g.n_beta, g.n_beta, float(1 - tx),
-                        float(tx), s.xi2 * row_mass);
+    s.y = invert_column(*m_decoded, s.mix.g.entry[s.component], s.i0, float(1 - tx), float(tx),
+                        s.xi2 * row_mass);
     const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
     const double u = -1 + 2 * s.y / (g.n_beta - 1);
     s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);
@@ -837,7 +893,6 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
     // (as eval_batch does): P6, P4 ∘ P3, the entries' row masses, the drawn rows, the corners.
     constexpr size_t kGroup = 16;
     std::vector<SampleState> group(kGroup);
-    const int n_beta = m_books->grid.n_beta;
     for (size_t begin = 0; begin < queries.size(); begin += kGroup) {
         const size_t n = std::min(kGroup, queries.size() - begin);
         for (size_t i = 0; i < n; ++i) {
@@ -856,9 +911,9 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
             SampleState& s = group[i];
             sample_mixture(s);
             sample_alpha(s);
-            const DecodedBooks::Sample* f = s.mix.g.entry[s.component];
-            __builtin_prefetch(f + s.i0 * n_beta);
-            __builtin_prefetch(f + (s.i0 + 2) * n_beta - 1);
+            const DecodedBooks::Sample* tiles =
+                m_decoded->tile_row(s.mix.g.index[s.component], s.i0);
+            prefetch_range(tiles, tiles + m_decoded->tile_row_size() - 1);
         }
         for (size_t i = 0; i < n; ++i) {
             sample_beta(group[i]);
@@ -894,6 +949,10 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
     std::vector<double> y(size_t(samples), 0.0), c1(size_t(samples), 0.0), c2(size_t(samples), 0.0);
     const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
     const DecodedBooks& d = *m_decoded;
+    std::vector<int> at(
+        static_cast<size_t>(samples));  // grid sample (α-major) → its offset in an entry
+    for (int s = 0; s < samples; ++s)
+        at[size_t(s)] = DecodedBooks::offset(g, s / g.n_beta, s % g.n_beta);
     for (int k = 0; k < 4; ++k) {
         if (corners.weight[k] == 0) continue;
         const IndexScale& e6 = m_index.p6[size_t(corners.texel[k])];
@@ -906,8 +965,9 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
                 const DecodedBooks::Sample* f = d.entry(v.index);
                 const double ys = wt * e6.scale * v.scale;
                 for (int s = 0; s < samples; ++s) {
-                    const std::array<float, 2> c = d.chroma(f[s]);
-                    y[size_t(s)] += ys * DecodedBooks::luminance(f[s]);
+                    const DecodedBooks::Sample& sample = f[at[size_t(s)]];
+                    const std::array<float, 2> c = d.chroma(sample);
+                    y[size_t(s)] += ys * DecodedBooks::luminance(sample);
                     c1[size_t(s)] += wt * c[0];
                     c2[size_t(s)] += wt * c[1];
                 }
@@ -1053,32 +1113,6 @@ namespace {
 double filter_number(double u) {
     if (!(u >= 0)) u = 0;  // NaN too
     return std::min(u, 0x1.fffffffffffffp-1);
-}
-
-// Hints every cache line of [begin, end].
-void prefetch_range(const void* begin, const void* end) {
-    const uintptr_t line = 64, last = reinterpret_cast<uintptr_t>(end) | (line - 1);
-    for (uintptr_t a = reinterpret_cast<uintptr_t>(begin) & ~(line - 1); a <= last; a += line)
-        __builtin_prefetch(reinterpret_cast<const void*>(a));
-}
-
-// The stochastic batches run their queries in blocks of kBlock (the lanes of lookup_views())
-// through a software pipeline of `Stages` stages: iteration j runs stage 0 of block j, stage 1
-// of block j − 1, …, and each stage prefetches what the block's next stage reads (P6, the fused
-// view, the M entry), which then has a whole iteration of every stage's arithmetic to arrive.
-// A query's own operations and their order are those of the ShadingPoint path, so the results
-// are the same bit for bit. `stage(k, first, count, slot)` runs stage k of queries [first,
-// first + count), whose state is at ring slot `slot` (of Stages).
-constexpr size_t kBlock = 4;
-template <size_t Stages, typename Stage>
-void pipeline(size_t n, Stage&& stage) {
-    const size_t blocks = (n + kBlock - 1) / kBlock;
-    for (size_t j = 0; j < blocks + Stages - 1; ++j)
-        for (size_t k = 0; k < Stages; ++k)
-            if (j >= k && j - k < blocks) {
-                const size_t b = j - k;
-                stage(k, b * kBlock, std::min(kBlock, n - b * kBlock), b % Stages);
-            }
 }
 
 }  // namespace
@@ -1237,8 +1271,9 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
                 for (size_t i = 0; i < count; ++i) {
                     sample_mixture(s[i]);
                     sample_alpha(s[i]);
-                    const DecodedBooks::Sample* f = s[i].mix.g.entry[0];
-                    prefetch_range(f + s[i].i0 * grid.n_beta, f + (s[i].i0 + 2) * grid.n_beta - 1);
+                    const DecodedBooks::Sample* tiles =
+                        m_decoded->tile_row(s[i].mix.g.index[0], s[i].i0);
+                    prefetch_range(tiles, tiles + m_decoded->tile_row_size() - 1);
                 }
                 break;
             default:

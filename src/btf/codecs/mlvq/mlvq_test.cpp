@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <random>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "btf/codecs/material_source.h"
@@ -309,11 +312,10 @@ TEST(MlvqDecoded, EqualsTheCodeBookChain) {
         for (int m = 0; m < g.n_phi_v; ++m)
             for (int k = 0; k < g.n_theta_v; ++k) {
                 const IndexScale& v = d.view(p6[t].index, m, k);
-                const DecodedBooks::Sample* e = d.entry(v.index);
                 for (int i = 0; i < g.n_alpha; ++i)
                     for (int j = 0; j < g.n_beta; ++j) {
                         const std::array<float, 3> chain = books.sample(p6[t], m, k, i, j);
-                        const DecodedBooks::Sample& s = e[i * g.n_beta + j];
+                        const DecodedBooks::Sample& s = d.sample(v.index, i, j);
                         const double y = double(p6[t].scale) * v.scale * DecodedBooks::luminance(s);
                         EXPECT_NEAR(y, chain[0], 5e-4 * std::abs(chain[0]) + 1e-12);
                         const std::array<float, 2> c = d.chroma(s);
@@ -329,12 +331,62 @@ TEST(MlvqDecoded, EqualsTheCodeBookChain) {
     for (int i = 0; i < g.n_alpha; ++i) {
         double sum = 0;
         for (int j = 0; j < g.n_beta; ++j)
-            sum += DecodedBooks::luminance(d.entry(0)[i * g.n_beta + j]) *
+            sum += DecodedBooks::luminance(d.sample(0, i, j)) *
                    ((j == 0 || j == g.n_beta - 1) ? 0.5 : 1.0);
         EXPECT_NEAR(rows[i], sum, 1e-6 * sum + 1e-12);
         total += sum * ((i == 0 || i == g.n_alpha - 1) ? 0.5 : 1.0);
     }
     EXPECT_NEAR(rows[g.n_alpha], total, 1e-6 * total + 1e-12);
+}
+
+// Decoded entries lie in 4 × 4 tiles that overlap by a sample: every copy of a sample holds the
+// same bits, the 2 × 2 corners of every (α, β) window lie in one tile (two 8-byte reads, α rows
+// kTile apart) within one cache line, and the rows that sampling reads through row_base() and
+// beta_offsets() are the samples. Grids of 7 × 7 (tiles overlapping at the end) and 11 × 12
+// (the paper's α; an axis that the tiles do not end on).
+TEST(MlvqDecoded, TilesHoldEveryWindowInOneLine) {
+    for (const auto& [n_alpha, n_beta] : {std::pair{7, 7}, std::pair{11, 12}}) {
+        Params params = small_grid();
+        params.set("n-alpha", std::to_string(n_alpha));
+        params.set("n-beta", std::to_string(n_beta));
+        const Codebooks books = read_codebooks(mlvq_codec().encode(leather(), params));
+        const DecodedBooks d(books);
+        const MlvqGrid& g = books.grid;
+        for (uint32_t m = 0; m < d.size_m(); m += 5) {
+            const DecodedBooks::Sample* e = d.entry(m);
+            ASSERT_EQ(reinterpret_cast<uintptr_t>(e) % 64, 0u);
+            auto same = [](const DecodedBooks::Sample& a, const DecodedBooks::Sample& b) {
+                return a.y == b.y && a.chroma[0] == b.chroma[0] && a.chroma[1] == b.chroma[1];
+            };
+            for (int i = 0; i + 1 < g.n_alpha; ++i)
+                for (int j = 0; j + 1 < g.n_beta; ++j) {
+                    const int off = DecodedBooks::offset(g, i, j);
+                    EXPECT_EQ(off / 16, (off + DecodedBooks::kTile + 1) / 16) << i << " " << j;
+                    EXPECT_TRUE(same(e[off], d.sample(m, i, j)));
+                    EXPECT_TRUE(same(e[off + 1], d.sample(m, i, j + 1)));
+                    EXPECT_TRUE(same(e[off + DecodedBooks::kTile], d.sample(m, i + 1, j)));
+                    EXPECT_TRUE(same(e[off + DecodedBooks::kTile + 1], d.sample(m, i + 1, j + 1)));
+                    EXPECT_TRUE(same(e[d.row_base(i) + d.beta_offsets()[j]], d.sample(m, i, j)));
+                    EXPECT_TRUE(same(e[d.row_base(i) + DecodedBooks::kTile + d.beta_offsets()[j]],
+                                     d.sample(m, i + 1, j)));
+                }
+            // The tile row of α rows i, i + 1 holds what sampling reads of them.
+            for (int i = 0; i + 1 < g.n_alpha; ++i) {
+                const DecodedBooks::Sample* tiles = d.tile_row(m, i);
+                EXPECT_GE(e + d.row_base(i), tiles);
+                EXPECT_LT(e + d.row_base(i) + DecodedBooks::kTile + d.beta_offsets()[g.n_beta - 1],
+                          tiles + d.tile_row_size());
+            }
+        }
+        // Each decoded value equals the code-book chain (checked above for the default grid).
+        for (int i = 0; i < g.n_alpha; ++i)
+            for (int j = 0; j < g.n_beta; ++j) {
+                const std::array<float, 3> chain = books.sample({0, 1.0f}, 0, 0, i, j);
+                const IndexScale& v = d.view(0, 0, 0);
+                const double y = double(v.scale) * DecodedBooks::luminance(d.sample(v.index, i, j));
+                EXPECT_NEAR(y, chain[0], 5e-4 * std::abs(chain[0]) + 1e-12);
+            }
+    }
 }
 
 // Importance sampling (§5.2): the directions follow the reported pdf (χ² test over equal-area
