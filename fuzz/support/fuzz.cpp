@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <vector>
 
 #include "btf/codecs/codec.h"
 #include "btf/core/image.h"
@@ -50,6 +51,14 @@ void exercise(const Material& material) {
     if (w > 0 && h > 0 && s.num_views() > 0 && s.num_lights() > 0) {
         consume(material.eval_sample(0, 0, 0, 0));
         consume(material.eval_sample(w - 1, h - 1, s.num_views() - 1, s.num_lights() - 1));
+        // The batch of them prefetches ahead: more indices than its distance.
+        std::vector<SampleIndex> indices(20);
+        for (size_t i = 0; i < indices.size(); ++i)
+            indices[i] = {int(i) % w, int(i * 7) % h, int(i * 3) % s.num_views(),
+                          int(i * 5) % s.num_lights()};
+        std::vector<Rgb> values(indices.size());
+        material.eval_sample_batch(indices, values);
+        for (const Rgb& v : values) consume(v);
     }
     const Query queries[] = {{kPositions[1], kDirections[0], kDirections[2]},
                              {kPositions[2], kDirections[0], kDirections[2]},

@@ -6,7 +6,8 @@
 // --filter: stochastic (the default, as `btf render` renders) goes through
 // eval_stochastic_batch / sample_stochastic_batch with one uniform number per query;
 // deterministic through eval_batch / sample_batch. `eval-sample` measures the uninterpolated
-// lookup eval_sample(x, y, view, light) at random texels and sample indices (no filter).
+// lookup eval_sample(x, y, view, light) at random texels and sample indices (no filter), through
+// eval_sample_batch.
 //
 // Queries: random (uv uniform over one repetition of the texture, light and view directions
 // uniform over the hemisphere) or --coherent (one image: a uv grid over the texture under one
@@ -83,9 +84,6 @@ std::vector<double> make_filter_numbers(size_t n) {
 }
 
 // Random texels and sample indices for eval-sample.
-struct SampleIndex {
-    int x, y, view, light;
-};
 std::vector<SampleIndex> make_sample_indices(size_t n, const Material& m) {
     std::vector<SampleIndex> out(n);
     std::mt19937_64 rng(20261205);
@@ -181,9 +179,10 @@ Command register_bench(CLI::App& app, GlobalOptions&) {
             std::vector<LightSample> drawn(eval ? 0 : n);
             auto work = [&](size_t begin, size_t end) {
                 if (lookup) {
-                    for (size_t i = begin; i < end; ++i) {
-                        const SampleIndex& s = indices[i];
-                        values[i] = material->eval_sample(s.x, s.y, s.view, s.light);
+                    for (size_t b = begin; b < end; b += kBatch) {
+                        const size_t e = std::min(end, b + kBatch);
+                        material->eval_sample_batch(std::span(indices).subspan(b, e - b),
+                                                    std::span(values).subspan(b, e - b));
                     }
                     return;
                 }

@@ -257,6 +257,41 @@ TEST(StochasticFilter, BatchEqualsTheShadingPoint) {
     }
 }
 
+// eval_sample_batch() returns eval_sample() of every index bit for bit (the factor evaluator's
+// prefetching batch, mlvq's default loop), past its prefetch distance and at the edges of the
+// material; an index outside it, or a count that does not match, is an error that says so.
+TEST(StochasticFilter, EvalSampleBatchEqualsEvalSample) {
+    std::mt19937_64 rng(9);
+    for (const Case& c : cases()) {
+        const Material& m = *c.material;
+        std::uniform_int_distribution<int> x(0, m.width() - 1), y(0, m.height() - 1);
+        std::uniform_int_distribution<int> view(0, m.sampling().num_views() - 1);
+        std::uniform_int_distribution<int> light(0, m.sampling().num_lights() - 1);
+        std::vector<SampleIndex> indices = {
+            {0, 0, 0, 0}, {m.width() - 1, m.height() - 1, view.max(), light.max()}};
+        for (int i = 0; i < 200; ++i) indices.push_back({x(rng), y(rng), view(rng), light(rng)});
+        std::vector<Rgb> values(indices.size());
+        m.eval_sample_batch(indices, values);
+        for (size_t i = 0; i < indices.size(); ++i) {
+            const SampleIndex& s = indices[i];
+            const Rgb one = m.eval_sample(s.x, s.y, s.view, s.light);
+            ASSERT_EQ(values[i].r, one.r) << c.name << " index " << i;
+            ASSERT_EQ(values[i].g, one.g) << c.name << " index " << i;
+            ASSERT_EQ(values[i].b, one.b) << c.name << " index " << i;
+        }
+        indices[150].light = light.max() + 1;
+        EXPECT_NE(test::error_of([&] {
+                      m.eval_sample_batch(indices, values);
+                  }).find(std::to_string(light.max() + 1)),
+                  std::string::npos)
+            << c.name;
+        values.pop_back();
+        EXPECT_NE(test::error_of([&] { m.eval_sample_batch(indices, values); }).find("outputs"),
+                  std::string::npos)
+            << c.name;
+    }
+}
+
 TEST(StochasticFilter, VertexSamplingFollowsItsPdf) {
     // A stochastic vertex samples and reports densities for its own selection: χ² of sample()
     // against pdf() at fixed numbers u (Šidák-corrected over the cases).

@@ -81,6 +81,13 @@ void Material::sample_batch(std::span<const SampleQuery> queries,
         out[i] = sample(queries[i].uv, queries[i].wo, queries[i].xi1, queries[i].xi2);
 }
 
+void Material::eval_sample_batch(std::span<const SampleIndex> indices, std::span<Rgb> out) const {
+    if (indices.size() != out.size())
+        fail("eval_sample_batch: {} indices but {} outputs", indices.size(), out.size());
+    for (size_t i = 0; i < indices.size(); ++i)
+        out[i] = eval_sample(indices[i].x, indices[i].y, indices[i].view, indices[i].light);
+}
+
 double Material::pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const {
     return generic_sampler().pdf(uv, wo, wi);
 }

@@ -55,6 +55,11 @@ struct Query {
     Vec3 wi, wo;  ///< light and view direction
 };
 
+/// One uninterpolated sample of a batched eval_sample(): an integer texel and sample indices.
+struct SampleIndex {
+    int x = 0, y = 0, view = 0, light = 0;
+};
+
 /// One light direction drawn by Material::sample().
 struct LightSample {
     Vec3 wi;         ///< the light direction: a unit vector with z ≥ 0
@@ -200,6 +205,11 @@ class Material {
 
     /// Value at exact sample indices and an integer texel (no interpolation).
     virtual Rgb eval_sample(int x, int y, int view, int light) const = 0;
+
+    /// eval_sample() for every index, the same values; out.size() must equal indices.size().
+    /// Implementations may prefetch what later indices read, so that random samples arrive at
+    /// the memory system's rate rather than one miss after another.
+    virtual void eval_sample_batch(std::span<const SampleIndex> indices, std::span<Rgb> out) const;
 
     /// eval() for every query; out.size() must equal queries.size(). Implementations may
     /// reuse work between consecutive queries with the same directions.

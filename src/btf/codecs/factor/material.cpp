@@ -1236,6 +1236,40 @@ Rgb FactorMaterial::eval_sample(int x, int y, int view, int light) const {
                            : m.sample<float>(texel, view, light));
 }
 
+// eval_sample() for each index, the rows of the index kAheadStochastic further prefetched (an
+// uninterpolated sample reads as many lines as a stochastic query: the a and b rows of one
+// sample).
+void FactorMaterial::eval_sample_batch(std::span<const SampleIndex> indices,
+                                       std::span<Rgb> out) const {
+    if (indices.size() != out.size())
+        fail("eval_sample_batch: {} indices but {} outputs", indices.size(), out.size());
+    const Impl& m = *m_impl;
+    const int width = m_model.width, height = m_model.height;
+    const int views = m_model.sampling.num_views(), lights = m_model.sampling.num_lights();
+    auto inside = [&](const SampleIndex& s) {
+        return s.x >= 0 && s.y >= 0 && s.x < width && s.y < height && s.view >= 0 &&
+               s.view < views && s.light >= 0 && s.light < lights;
+    };
+    auto run = [&]<typename T>() {
+        for (size_t i = 0; i < indices.size(); ++i) {
+            if (i + kAheadStochastic < indices.size()) {
+                const SampleIndex& next = indices[i + kAheadStochastic];
+                if (inside(next))
+                    m.prefetch_sample<T>(int64_t(next.y) * width + next.x, next.view, next.light);
+            }
+            const SampleIndex& s = indices[i];
+            if (!inside(s))
+                fail("eval_sample_batch: ({}, {}, view {}, light {}) is outside the material", s.x,
+                     s.y, s.view, s.light);
+            out[i] = m.finish(m.sample<T>(int64_t(s.y) * width + s.x, s.view, s.light));
+        }
+    };
+    if (m.half)
+        run.template operator()<uint16_t>();
+    else
+        run.template operator()<float>();
+}
+
 Rgb FactorMaterial::eval_sample_reference(int x, int y, int view, int light) const {
     const Impl& m = *m_impl;
     const int64_t texel = int64_t(y) * m_model.width + x;

@@ -194,6 +194,7 @@ class FactorMaterial final : public Material {
     const Sampling& sampling() const override { return m_model.sampling; }
     Rgb eval(const Uv& uv, const Vec3& wi, const Vec3& wo) const override;
     Rgb eval_sample(int x, int y, int view, int light) const override;
+    void eval_sample_batch(std::span<const SampleIndex> indices, std::span<Rgb> out) const override;
 
     /// eval() for many queries (out.size() == queries.size()); consecutive queries with the same
     /// directions reuse the angular accumulation.
