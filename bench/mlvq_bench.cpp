@@ -90,18 +90,25 @@ std::pair<std::unique_ptr<Material>, std::unique_ptr<Material>> encode_and_repor
 
 // The most random queries per second the machine's memory allows the decoded entries: a query
 // reads 16 entries (4 texels × 2 θv × 2 φv) at unrelated places, 8 bytes from each of two α rows
-// n_β samples apart, and this machine loads only so many random lines per second from a buffer
-// that large (bench::random_line_rate). The views and P6 are not counted: an upper bound.
+// of a (α, β) window, and this machine loads only so many random lines per second from a buffer
+// that large (bench::random_line_rate). The lines a window spans are counted over every window
+// of the grid in the decoded layout (decoded.h: tiles that start on a line). The views and P6 are
+// not counted: an upper bound.
 void print_memory_ceiling(const mlvq::DecodedBooks& decoded, int repeat) {
-    const size_t row = sizeof(mlvq::DecodedBooks::Sample) * size_t(decoded.grid().n_beta);
-    double lines = 0;  // mean over the 4-byte aligned offsets within a line
-    for (size_t s = 0; s < 64; s += 4) {
-        const size_t first[2] = {s / 64, (s + row) / 64},
-                     last[2] = {(s + 7) / 64, (s + row + 7) / 64};
-        lines += double(last[0] - first[0] + 1 + last[1] - first[1] + 1) -
-                 (first[1] <= last[0] ? double(last[0] - first[1] + 1) : 0.0);
-    }
-    lines /= 16;
+    using Sample = mlvq::DecodedBooks::Sample;
+    const mlvq::MlvqGrid& g = decoded.grid();
+    double lines = 0;
+    int windows = 0;
+    for (int i = 0; i + 1 < g.n_alpha; ++i)
+        for (int j = 0; j + 1 < g.n_beta; ++j, ++windows) {
+            const size_t off = size_t(mlvq::DecodedBooks::offset(g, i, j)) * sizeof(Sample);
+            const size_t next = off + mlvq::DecodedBooks::kTile * sizeof(Sample);  // row α + 1
+            const size_t first[2] = {off / 64, next / 64},
+                         last[2] = {(off + 7) / 64, (next + 7) / 64};
+            lines += double(last[0] - first[0] + 1 + last[1] - first[1] + 1) -
+                     (first[1] <= last[0] ? double(last[0] - first[1] + 1) : 0.0);
+        }
+    lines /= windows;
     const double rate = bench::random_line_rate(decoded.entry_bytes(), repeat);
     std::printf(
         "| memory ceiling: %.1f M random 64-byte lines/s from %.0f MB (the decoded entries), "
