@@ -340,6 +340,13 @@ void prefetch_range(const void* begin, const void* end) {
         __builtin_prefetch(reinterpret_cast<const void*>(a));
 }
 
+// A number into [0, 1): ShadingPoint's clamp of the filter number, and of sampling's (ξ1, ξ2)
+// (NaN to 0: a NaN would reach an index).
+double filter_number(double u) {
+    if (!(u >= 0)) u = 0;  // NaN too
+    return std::min(u, 0x1.fffffffffffffp-1);
+}
+
 TexelCorners texel_corners(const Uv& uv, int width, int height) {
     const WrapLerp lx = wrap_lerp(uv.u, width), ly = wrap_lerp(uv.v, height);
     const int64_t r0 = int64_t(ly.i0) * width, r1 = int64_t(ly.i1) * width;
@@ -662,11 +669,16 @@ namespace {
 // branches: the draws are random, and a branch on them would mispredict.
 double invert_segment(int i, double low, float a, float b, double target) {
     const float segment = 0.5f * (a + b);
-    const float r = std::clamp(float(target - low), 0.0f, segment);
+    // std::clamp's order (NaN passes) without its precondition 0 ≤ segment, which a crafted
+    // negative sample breaks.
+    float r = float(target - low);
+    r = r < 0 ? 0.0f : segment < r ? segment : r;
     const float denominator = a + std::sqrt(std::max(0.0f, a * a + 2 * (b - a) * r));
     // A segment of no mass (or a crafted a < 0) has no root to find: its middle, or its start.
     const float x = denominator > 0 ? 2 * r / denominator : segment > 0 ? 0.0f : 0.5f;
-    return i + double(std::clamp(x, 0.0f, 1.0f));
+    // Into [0, 1], NaN (a NaN target, from a share of 0 / 0) to 0: the caller truncates it to
+    // an index.
+    return i + double(x > 0 ? std::min(x, 1.0f) : 0.0f);
 }
 
 // Inverse CDF of a density that is linear between samples v[0 … n−1] (unit spacing), given the
@@ -793,8 +805,8 @@ struct MlvqMaterial::SampleState {
 void MlvqMaterial::sample_begin(const SampleQuery& q, SampleState& s) const {
     s.uv = q.uv;
     s.wo = q.wo;
-    s.xi1 = std::clamp(q.xi1, 0.0, std::nextafter(1.0, 0.0));
-    s.xi2 = std::clamp(q.xi2, 0.0, std::nextafter(1.0, 0.0));
+    s.xi1 = filter_number(q.xi1);
+    s.xi2 = filter_number(q.xi2);
     s.mix.view = lookup_view(m_books->grid, q.wo);
     s.corners = texel_corners(q.uv, m_index.width, m_index.height);
 }
@@ -1058,8 +1070,8 @@ void MlvqMaterial::sample_selected_begin(const Selection& s, const Uv& uv, const
                                          SampleState& out) const {
     out.uv = uv;
     out.wo = wo;
-    out.xi1 = std::clamp(xi1, 0.0, std::nextafter(1.0, 0.0));
-    out.xi2 = std::clamp(xi2, 0.0, std::nextafter(1.0, 0.0));
+    out.xi1 = filter_number(xi1);
+    out.xi2 = filter_number(xi2);
     out.mix.view = view;
     out.stochastic = true;
     out.selection = s;
@@ -1106,16 +1118,6 @@ double MlvqMaterial::pdf_selected(const Selection& s, const Uv&, const Vec3& wo,
     return std::max(0.0, double(combine(st.mix.g)[0])) /
            (st.mix.total * Mixture::cell(m_books->grid));
 }
-
-namespace {
-
-// ShadingPoint's clamp of the filter number.
-double filter_number(double u) {
-    if (!(u >= 0)) u = 0;  // NaN too
-    return std::min(u, 0x1.fffffffffffffp-1);
-}
-
-}  // namespace
 
 // One term of eval()'s sum per query, drawn with probability equal to its weight there: a view
 // node of the 2 φv × 2 θv by φv weight × θv weight, then a texel of the 4 by its bilinear weight

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "btf/codecs/mlvq/mlvq.h"
@@ -193,6 +195,27 @@ TEST(MlvqStochastic, SamplingFollowsItsPdfOnRowsLongerThanAVector) {
     const auto material = mlvq_codec().open(mlvq_codec().encode(*glossy, params));
     expect_sampling_follows_its_pdf(
         *material, {{{0.4, 0.7}, Direction::from_degrees(37, 65).vector()}}, {0.2, 0.77});
+}
+
+// NaN numbers (ξ, and the share of a component of no mass that rounding can make 0 / 0) draw a
+// direction in the hemisphere, as ξ = 0 does, in both the stochastic and the deterministic
+// sampling; they never reach an index.
+TEST(MlvqStochastic, NanNumbersDrawAsZero) {
+    const Material& m = leather();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const Vec3 wo = Direction::from_degrees(40, 10).vector();
+    const ShadingPoint sp(m, {0.3, 0.6}, wo, Filter::kStochastic, 0.4);
+    for (const auto& [xi1, xi2] : {std::pair{nan, 0.5}, std::pair{0.5, nan}, std::pair{nan, nan}}) {
+        const LightSample ls = sp.sample(xi1, xi2);
+        const LightSample zero =
+            sp.sample(std::isnan(xi1) ? 0.0 : xi1, std::isnan(xi2) ? 0.0 : xi2);
+        EXPECT_EQ(ls.wi.x, zero.wi.x);
+        EXPECT_EQ(ls.wi.y, zero.wi.y);
+        EXPECT_EQ(ls.wi.z, zero.wi.z);
+        const LightSample d = m.sample({0.3, 0.6}, wo, xi1, xi2);
+        EXPECT_TRUE(std::isfinite(d.wi.x) && std::isfinite(d.wi.y) && d.wi.z >= 0);
+        EXPECT_GT(d.pdf, 0);
+    }
 }
 
 // A term of zero luminance samples the hemisphere uniformly and says so.
