@@ -282,7 +282,7 @@ TEST(StochasticFilter, EvalSampleBatchEqualsEvalSample) {
         indices[150].light = light.max() + 1;
         EXPECT_NE(test::error_of([&] {
                       m.eval_sample_batch(indices, values);
-                  }).find(std::to_string(light.max() + 1)),
+                  }).find("light " + std::to_string(light.max() + 1) + ")"),
                   std::string::npos)
             << c.name;
         values.pop_back();

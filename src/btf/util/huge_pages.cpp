@@ -1,5 +1,6 @@
 #include "btf/util/huge_pages.h"
 
+#include <algorithm>
 #include <cstdlib>
 
 #ifdef __linux__
@@ -10,7 +11,7 @@ namespace btf {
 
 void* allocate_table(size_t bytes, size_t alignment) {
     const bool huge = bytes >= kHugePageBytes;
-    if (huge) alignment = kHugePageBytes;
+    if (huge) alignment = std::max(alignment, kHugePageBytes);
     if (alignment < kCacheLineBytes) alignment = kCacheLineBytes;
     // aligned_alloc wants a multiple of the alignment.
     const size_t rounded = (bytes + alignment - 1) / alignment * alignment;

@@ -57,7 +57,7 @@ TEST(HugePages, VectorsOverTheAllocatorHoldTheirValues) {
     EXPECT_EQ(copy.back(), -1.0f);
     std::vector<uint64_t, TableAllocator<uint64_t>> small = {1, 2, 3};
     EXPECT_EQ(small[2], 3u);
-    EXPECT_EQ(address(small.data()) % alignof(uint64_t), 0u);
+    EXPECT_EQ(address(small.data()) % kCacheLineBytes, 0u);
 }
 
 TEST(HugePages, ImpossibleSizesThrowBadAlloc) {
