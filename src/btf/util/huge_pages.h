@@ -21,9 +21,10 @@ inline constexpr size_t kCacheLineBytes = 64;
 
 /// `bytes` of uninitialized memory aligned to `alignment` (a power of two; at least
 /// kCacheLineBytes) and, from kHugePageBytes on, to kHugePageBytes with huge pages requested;
-/// std::bad_alloc when there is none. Freed with std::free(). The first touch of a page is what
+/// std::bad_alloc when there is none. Freed with free_table(). The first touch of a page is what
 /// maps it, so a caller that fills the block right away gets the huge pages then.
 void* allocate_table(size_t bytes, size_t alignment = alignof(std::max_align_t));
+void free_table(void* p) noexcept;
 
 /// A std::vector allocator over allocate_table().
 template <typename T>
@@ -36,18 +37,11 @@ struct TableAllocator {
         if (n > size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
         return static_cast<T*>(allocate_table(n * sizeof(T), alignof(T)));
     }
-    void deallocate(T* p, size_t) noexcept;
+    void deallocate(T* p, size_t) noexcept { free_table(p); }
     template <typename U>
     bool operator==(const TableAllocator<U>&) const noexcept {
         return true;
     }
 };
-
-void free_table(void* p) noexcept;
-
-template <typename T>
-void TableAllocator<T>::deallocate(T* p, size_t) noexcept {
-    free_table(p);
-}
 
 }  // namespace btf

@@ -73,12 +73,14 @@ class DecodedBooks {
     /// its neighbours by one), so that every window (i, i + 1), i ≤ n − 2, lies in tile i / 3.
     static constexpr int kTile = 4, kTileStep = 3;
     static int tiles(int n) { return (n - 2) / kTileStep + 1; }
+    /// The tile of an axis of `tiles` tiles that holds the window at sample i (the last one for
+    /// the axis's last sample).
+    static int tile_of(int i, int tiles) { return std::min(i / kTileStep, tiles - 1); }
     /// Offset of sample (i, j) within an entry, in the tile that holds the window at (i, j) (or
     /// the last tile of an axis); sample (i + 1, j) is kTile further (the next row of the tile).
     static int offset(const MlvqGrid& g, int i, int j) {
         const int tiles_beta = tiles(g.n_beta);
-        const int a = std::min(i / kTileStep, tiles(g.n_alpha) - 1);
-        const int b = std::min(j / kTileStep, tiles_beta - 1);
+        const int a = tile_of(i, tiles(g.n_alpha)), b = tile_of(j, tiles_beta);
         return ((a * tiles_beta + b) * kTile + i - kTileStep * a) * kTile + j - kTileStep * b;
     }
     /// The samples of M entry `m`: tiles of 4 × 4 (α, β) samples (64 bytes, a cache line),
@@ -87,16 +89,12 @@ class DecodedBooks {
     const Sample& sample(uint32_t m, int i, int j) const { return entry(m)[offset(m_grid, i, j)]; }
     /// Row α = i of an entry as offset(i, j) splits it: row_base(i) + beta_offset(j), and row
     /// i + 1 of the same tiles kTile further; beta_offsets() has nβ of them.
-    int row_base(int i) const {
-        const int a = std::min(i / kTileStep, m_tiles_alpha - 1);
-        return (a * m_tiles_beta * kTile + i - kTileStep * a) * kTile;
-    }
+    int row_base(int i) const { return offset(m_grid, i, 0); }
     const int32_t* beta_offsets() const { return m_beta_offsets.data(); }
     /// The tiles that hold rows i and i + 1 of an entry (i ≤ nα − 2): tile_row_size() samples
     /// from tile_row(m, i), for prefetching what sampling reads of them.
     const Sample* tile_row(uint32_t m, int i) const {
-        const int a = std::min(i / kTileStep, m_tiles_alpha - 1);
-        return entry(m) + size_t(a) * tile_row_size();
+        return entry(m) + size_t(tile_of(i, m_tiles_alpha)) * tile_row_size();
     }
     size_t tile_row_size() const { return size_t(m_tiles_beta) * kTile * kTile; }
     /// Per M entry: the row integrals of its luminance over β (trapezoid, sample-index units)

@@ -321,16 +321,32 @@ namespace {
 // A query's own operations and their order are those of the one-query path (eval(), or the
 // ShadingPoint's), so the results are the same bit for bit. `stage(k, first, count, slot)` runs
 // stage k of queries [first, first + count), whose state is at ring slot `slot` (of Stages).
+// With `query_stage`, the last two stages run after the others query by query in turn instead:
+// `query_stage(k, query, slot, i)` for query i of its block, so that one query's prefetches
+// alternate with another's arithmetic (a burst of more prefetches than the core has miss
+// buffers stalls the instructions behind it).
 constexpr size_t kBlock = 4;
+template <size_t Stages, typename Stage, typename QueryStage>
+void pipeline(size_t n, Stage&& stage, QueryStage&& query_stage, bool by_query = true) {
+    static_assert(Stages >= 2);
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    auto count = [&](size_t b) { return std::min(kBlock, n - b * kBlock); };
+    const size_t block_stages = by_query ? Stages - 2 : Stages;
+    for (size_t j = 0; j < blocks + Stages - 1; ++j) {
+        for (size_t k = 0; k < block_stages; ++k)
+            if (j >= k && j - k < blocks)
+                stage(k, (j - k) * kBlock, count(j - k), (j - k) % Stages);
+        if (!by_query) continue;
+        for (size_t i = 0; i < kBlock; ++i)
+            for (size_t k = Stages - 2; k < Stages; ++k)
+                if (j >= k && j - k < blocks && i < count(j - k))
+                    query_stage(k, (j - k) * kBlock + i, (j - k) % Stages, i);
+    }
+}
 template <size_t Stages, typename Stage>
 void pipeline(size_t n, Stage&& stage) {
-    const size_t blocks = (n + kBlock - 1) / kBlock;
-    for (size_t j = 0; j < blocks + Stages - 1; ++j)
-        for (size_t k = 0; k < Stages; ++k)
-            if (j >= k && j - k < blocks) {
-                const size_t b = j - k;
-                stage(k, b * kBlock, std::min(kBlock, n - b * kBlock), b % Stages);
-            }
+    pipeline<Stages>(
+        n, stage, [](size_t, size_t, size_t, size_t) {}, false);
 }
 
 // Hints every cache line of [begin, end].
@@ -451,13 +467,8 @@ Rgb MlvqMaterial::eval_weights(const Uv& uv, const MlvqWeights& w) const {
 void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out) const {
     if (queries.size() != out.size())
         fail("eval_batch: {} queries but {} outputs", queries.size(), out.size());
-    // Random queries miss the cache at every level of P6 → P4 ∘ P3 → M. Blocks of kBlock go
-    // through the levels in a software pipeline (iteration j: the directions, texels and P6 of
-    // block j, P4 ∘ P3 of block j − 1, the M entries of block j − 2, the blend of block j − 3),
-    // each level prefetching what the next one reads. The last two run query by query in turn,
-    // so that the 16 entry prefetches of one query alternate with the blend of another: a burst
-    // of more prefetches than the core has miss buffers stalls the instructions behind it, and
-    // the blends with them.
+    // Random queries miss the cache at every level of P6 → P4 ∘ P3 → M: the levels are the
+    // stages of pipeline(), the M entries (16 prefetches a query) and the blend query by query.
     constexpr size_t kStages = 4;
     struct State {
         MlvqWeights w;
@@ -468,57 +479,47 @@ void MlvqMaterial::eval_batch(std::span<const Query> queries, std::span<Rgb> out
     const MlvqGrid& grid = m_books->grid;
     MlvqWeights carried;  // the last query's weights, for a run that goes on into the next block
     auto same = [](const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; };
-    const size_t n = queries.size(), blocks = (n + kBlock - 1) / kBlock;
-    auto count_of = [&](size_t b) { return std::min(kBlock, n - b * kBlock); };
-    for (size_t j = 0; j < blocks + kStages - 1; ++j) {
-        if (j < blocks) {  // directions (one lookup per run of equal ωi, ωo) and texels; P6
-            const size_t first = j * kBlock, count = count_of(j);
-            const Query* q = queries.data() + first;
-            State* s = ring[j % kStages];
-            Vec3 wi[kBlock], wo[kBlock];
-            MlvqWeights looked_up[kBlock];
-            int run[kBlock];
-            size_t runs = 0;
-            for (size_t i = 0; i < count; ++i) {
-                const Query* previous = first + i > 0 ? q + i - 1 : nullptr;
-                if (!previous || !same(q[i].wi, previous->wi) || !same(q[i].wo, previous->wo)) {
-                    wi[runs] = q[i].wi;
-                    wo[runs] = q[i].wo;
-                    ++runs;
-                }
-                run[i] = int(runs) - 1;  // −1: the run goes on from the previous block
-            }
-            lookup(grid, wi, wo, runs, looked_up);
-            for (size_t i = 0; i < count; ++i) {
-                s[i].w = run[i] >= 0 ? looked_up[run[i]] : carried;
-                s[i].corners = texel_corners(q[i].uv, m_index.width, m_index.height);
-                for (int k = 0; k < 4; ++k)
-                    __builtin_prefetch(&m_index.p6[size_t(s[i].corners.texel[k])]);
-            }
-            carried = s[count - 1].w;
+    auto stage = [&](size_t k, size_t first, size_t count, size_t slot) {
+        State* s = ring[slot];
+        if (k == 1) {  // P4 ∘ P3
+            for (size_t i = 0; i < count; ++i) prefetch_views(s[i].corners, s[i].w);
+            return;
         }
-        if (j >= 1 && j - 1 < blocks) {  // P4 ∘ P3
-            State* s = ring[(j - 1) % kStages];
-            for (size_t i = 0, count = count_of(j - 1); i < count; ++i)
-                prefetch_views(s[i].corners, s[i].w);
-        }
-        const bool gathering = j >= 2 && j - 2 < blocks, blending = j >= 3 && j - 3 < blocks;
-        State* gather_block = ring[(j + kStages - 2) % kStages];
-        State* blend_block = ring[(j + kStages - 3) % kStages];
-        const size_t gather_count = gathering ? count_of(j - 2) : 0;
-        const size_t blend_count = blending ? count_of(j - 3) : 0;
-        for (size_t i = 0; i < kBlock; ++i) {
-            if (i < gather_count) {  // the M entries
-                State& s = gather_block[i];
-                gather(s.corners, s.w, s.g);
-                for (int c = 0; c < s.g.count; ++c) s.g.prefetch(c);
+        // Directions (one lookup per run of equal ωi, ωo) and texels; P6.
+        const Query* q = queries.data() + first;
+        Vec3 wi[kBlock], wo[kBlock];
+        MlvqWeights looked_up[kBlock];
+        int run[kBlock];
+        size_t runs = 0;
+        for (size_t i = 0; i < count; ++i) {
+            const Query* previous = first + i > 0 ? q + i - 1 : nullptr;
+            if (!previous || !same(q[i].wi, previous->wi) || !same(q[i].wo, previous->wo)) {
+                wi[runs] = q[i].wi;
+                wo[runs] = q[i].wo;
+                ++runs;
             }
-            if (i < blend_count) {
-                const std::array<float, 3> p = combine(blend_block[i].g);
-                out[(j - 3) * kBlock + i] = from_planes(m_books->colour, p[0], p[1], p[2]);
-            }
+            run[i] = int(runs) - 1;  // −1: the run goes on from the previous block
         }
-    }
+        lookup(grid, wi, wo, runs, looked_up);
+        for (size_t i = 0; i < count; ++i) {
+            s[i].w = run[i] >= 0 ? looked_up[run[i]] : carried;
+            s[i].corners = texel_corners(q[i].uv, m_index.width, m_index.height);
+            for (int c = 0; c < 4; ++c)
+                __builtin_prefetch(&m_index.p6[size_t(s[i].corners.texel[c])]);
+        }
+        carried = s[count - 1].w;
+    };
+    auto query_stage = [&](size_t k, size_t query, size_t slot, size_t i) {
+        State& s = ring[slot][i];
+        if (k == 2) {  // the M entries
+            gather(s.corners, s.w, s.g);
+            for (int c = 0; c < s.g.count; ++c) s.g.prefetch(c);
+        } else {
+            const std::array<float, 3> p = combine(s.g);
+            out[query] = from_planes(m_books->colour, p[0], p[1], p[2]);
+        }
+    };
+    pipeline<kStages>(queries.size(), stage, query_stage);
 }
 
 Rgb MlvqMaterial::eval_sample(int x, int y, int view, int light) const {
@@ -848,8 +849,8 @@ void MlvqMaterial::sample_beta(SampleState& s) const {
         return;
     }
     const double tx = s.x - s.i0;
-    // The column at α blends the two rows' luminances (adjacent in the entry); its trapezoid sum
-    // is linear in the rows': their precomputed integrals blended.
+    // The column at α blends the two rows' luminances (rows of the same tiles); its trapezoid
+    // sum is linear in the rows': their precomputed integrals blended.
     const float* rows = m_decoded->rows(s.mix.g.index[s.component]);
     const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
     s.y = invert_column(*m_decoded, s.mix.g.entry[s.component], s.i0, float(1 - tx), float(tx),
@@ -961,8 +962,8 @@ Rgb MlvqMaterial::albedo(const Uv& uv, const Vec3& wo) const {
     std::vector<double> y(size_t(samples), 0.0), c1(size_t(samples), 0.0), c2(size_t(samples), 0.0);
     const TexelCorners corners = texel_corners(uv, m_index.width, m_index.height);
     const DecodedBooks& d = *m_decoded;
-    std::vector<int> at(
-        static_cast<size_t>(samples));  // grid sample (α-major) → its offset in an entry
+    // Grid sample s (α-major) → its offset in an entry.
+    std::vector<int> at(static_cast<size_t>(samples));
     for (int s = 0; s < samples; ++s)
         at[size_t(s)] = DecodedBooks::offset(g, s / g.n_beta, s % g.n_beta);
     for (int k = 0; k < 4; ++k) {
