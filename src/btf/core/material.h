@@ -227,8 +227,10 @@ class Material {
     /// sample() one by one; implementations may overlap the memory accesses of many queries.
     virtual void sample_batch(std::span<const SampleQuery> queries,
                               std::span<LightSample> out) const;
-    /// The density (per unit solid angle) with which sample(uv, wo, ·, ·) draws `wi`: exactly the
-    /// pdf sample() reports for that direction; 0 below the horizon. Default: the generic sampler.
+    /// The density (per unit solid angle) with which sample(uv, wo, ·, ·) draws `wi`: the pdf
+    /// sample() reports for that direction, exactly or, where a codec draws in its own
+    /// coordinates of directions (mlvq's onion angles), to within their rounding (a relative
+    /// 1e-5 at most); 0 below the horizon. Default: the generic sampler.
     virtual double pdf(const Uv& uv, const Vec3& wo, const Vec3& wi) const;
     /// Directional albedo a(uv, ωo) = (1/π) ∫_Ω value(uv, ωi, ωo) dωi per channel, at `uv` and
     /// `wo` exactly. Default: quadrature_albedo() of btf/core/light_sampler.h.
@@ -264,8 +266,8 @@ class Material {
     virtual Rgb eval_selected(const Selection& s, const Uv& uv, const Vec3& wo,
                               const Vec3& wi) const;
     /// A light direction drawn for the selection, its pdf, its value eval_selected() and the
-    /// weight. Default: the generic sampler's table of the selected texel's tile and the
-    /// selected view (no blend over views).
+    /// weight (pdf and value as pdf() and sample() relate them). Default: the generic sampler's
+    /// table of the selected texel's tile and the selected view (no blend over views).
     virtual LightSample sample_selected(const Selection& s, const Uv& uv, const Vec3& wo,
                                         double xi1, double xi2) const;
     /// The density sample_selected() draws wi with.

@@ -20,10 +20,11 @@ namespace btf::mlvq {
 DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     const MlvqGrid& g = m_grid;
     const int n_views = g.n_phi_v * g.n_theta_v;
-    m_tiles_alpha = tiles(g.n_alpha);
-    m_tiles_beta = tiles(g.n_beta);
-    m_per_entry = size_t(m_tiles_alpha) * size_t(m_tiles_beta) * kTile * kTile;
-    for (int j = 0; j < g.n_beta; ++j) m_beta_offsets.push_back(offset(g, 0, j));
+    m_per_entry = size_t(tiles(g.n_alpha)) * size_t(tiles(g.n_beta)) * kTile * kTile;
+    const size_t halves = size_t(g.n_alpha) * size_t(g.n_beta);
+    const size_t line_floats = 64 / sizeof(float);
+    m_record_floats =
+        (size_t(g.n_alpha) + 1 + (halves + 1) / 2 + line_floats - 1) / line_floats * line_floats;
 
     // P4 ∘ P3.
     m_views.resize(b.size_p4() * size_t(n_views));
@@ -48,10 +49,11 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     }
 
     // M entries: luminance c_P2 · P1 and chromaticity I2 → I1 → C per (α, β) sample.
-    // A package's M code-book is bounded by its section's size, its decoded tiles (1 KiB per
-    // entry at the paper's grid) by the allocation limit.
-    check_alloc(checked_bytes(b.size_m(), m_per_entry * sizeof(Sample)).value_or(UINT64_MAX),
-                "mlvq code-books", fmt::format("decoding the {} entries of M", b.size_m()));
+    // A package's M code-book is bounded by its section's size, its decoded tiles and sampling
+    // records (1 KiB + 320 bytes per entry at the paper's grid) by the allocation limit.
+    const size_t per_entry_bytes = m_per_entry * sizeof(Sample) + m_record_floats * sizeof(float);
+    check_alloc(checked_bytes(b.size_m(), per_entry_bytes).value_or(UINT64_MAX), "mlvq code-books",
+                fmt::format("decoding the {} entries of M", b.size_m()));
     m_samples.resize(b.size_m() * m_per_entry);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
         const std::array<uint32_t, 2>& merge = b.m[size_t(e)];
@@ -82,17 +84,20 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
         }
     });
 
-    // Row integrals over β of each entry's luminance (trapezoid in sample-index units) and their
-    // integral over α: what importance sampling picks rows and components with.
-    const size_t stride = size_t(g.n_alpha) + 1;
-    m_rows.resize(b.size_m() * stride);
+    // Sampling records: the row integrals over β of each entry's luminance (trapezoid in
+    // sample-index units) and their integral over α, what importance sampling picks rows and
+    // components with, then the luminance halves row by row.
+    m_records.resize(b.size_m() * m_record_floats);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
-        float* r = m_rows.data() + size_t(e) * stride;
+        float* r = m_records.data() + size_t(e) * m_record_floats;
+        char* halves = reinterpret_cast<char*>(r + g.n_alpha + 1);
         double total = 0;
         for (int i = 0; i < g.n_alpha; ++i) {
             double sum = 0;
             for (int j = 0; j < g.n_beta; ++j) {
-                const double y = luminance(sample(uint32_t(e), i, j));
+                const Sample& s = sample(uint32_t(e), i, j);
+                std::memcpy(halves + sizeof(uint16_t) * (size_t(i) * g.n_beta + j), &s.y, 2);
+                const double y = luminance(s);
                 sum += (j == 0 || j == g.n_beta - 1) ? 0.5 * y : y;
             }
             r[i] = float(sum);

@@ -18,12 +18,15 @@
 ///    tiles, 1024 bytes, against 484 untiled: 2.1× the memory for 1.7× fewer lines per lookup).
 ///    The corners are two 8-byte reads, one per α row, that one SIMD shuffle decodes;
 ///
-/// plus each entry's row integrals for importance sampling.
+/// plus, per entry, a record of what importance sampling reads: the row integrals and the
+/// luminance once more, untiled (sampling reads two whole α rows, which cross every tile of a tile
+/// row: four lines, against one or two here; 320 bytes an entry at the paper's grid).
 
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "btf/codecs/mlvq/codebooks.h"
@@ -87,24 +90,28 @@ class DecodedBooks {
     /// α-major; offset() finds a sample.
     const Sample* entry(uint32_t m) const { return m_samples.data() + size_t(m) * m_per_entry; }
     const Sample& sample(uint32_t m, int i, int j) const { return entry(m)[offset(m_grid, i, j)]; }
-    /// Row α = i of an entry as offset(i, j) splits it: row_base(i) + beta_offset(j), and row
-    /// i + 1 of the same tiles kTile further; beta_offsets() has nβ of them.
-    int row_base(int i) const { return offset(m_grid, i, 0); }
-    const int32_t* beta_offsets() const { return m_beta_offsets.data(); }
-    /// The tiles that hold rows i and i + 1 of an entry (i ≤ nα − 2): tile_row_size() samples
-    /// from tile_row(m, i), for prefetching what sampling reads of them.
-    const Sample* tile_row(uint32_t m, int i) const {
-        return entry(m) + size_t(tile_of(i, m_tiles_alpha)) * tile_row_size();
+    /// Entry m's sampling record (64-byte aligned; record_floats() floats): the row integrals
+    /// of its luminance over β (trapezoid, sample-index units) for each α and their integral
+    /// over α (nα + 1 floats), then the luminance samples as IEEE halves, α-major (nα × nβ, an
+    /// even count, packed two to a float's bytes).
+    const float* rows(uint32_t m) const { return m_records.data() + size_t(m) * m_record_floats; }
+    size_t record_floats() const { return m_record_floats; }
+    /// The bytes of the halves of α row i of entry m's record (nβ of them; row i + 1 follows),
+    /// for loads that do not care for types (vector loads, memcpy): luminance_at() reads one.
+    const void* luminance_row(uint32_t m, int i) const {
+        return reinterpret_cast<const char*>(rows(m) + m_grid.n_alpha + 1) +
+               sizeof(uint16_t) * size_t(i) * size_t(m_grid.n_beta);
     }
-    size_t tile_row_size() const { return size_t(m_tiles_beta) * kTile * kTile; }
-    /// Per M entry: the row integrals of its luminance over β (trapezoid, sample-index units)
-    /// for each α, then their integral over α: nα + 1 values.
-    const float* rows(uint32_t m) const {
-        return m_rows.data() + size_t(m) * (size_t(m_grid.n_alpha) + 1);
+    static float luminance_at(const void* row, int j) {
+        Sample s{};
+        std::memcpy(&s.y, static_cast<const char*>(row) + sizeof(uint16_t) * size_t(j), 2);
+        return luminance(s);
     }
     size_t size_m() const { return m_per_entry ? m_samples.size() / m_per_entry : 0; }
-    /// Bytes of the decoded entries and of the fused views.
-    size_t entry_bytes() const { return m_samples.size() * sizeof(Sample); }
+    /// Bytes of the decoded entries (tiles and sampling records) and of the fused views.
+    size_t entry_bytes() const {
+        return m_samples.size() * sizeof(Sample) + m_records.size() * sizeof(float);
+    }
     size_t view_bytes() const { return m_views.size() * sizeof(IndexScale); }
 
     static float luminance(const Sample& s) {
@@ -121,14 +128,13 @@ class DecodedBooks {
 
   private:
     MlvqGrid m_grid;
-    int m_tiles_alpha = 0, m_tiles_beta = 0;
     size_t m_per_entry = 0;
-    std::vector<int32_t> m_beta_offsets;
     // Tables read at random (on huge pages where large: huge_pages.h).
     std::vector<IndexScale, TableAllocator<IndexScale>> m_views;
     std::vector<Sample, TableAllocator<Sample>> m_samples;
     float m_chroma_lo[2] = {0, 0}, m_chroma_step[2] = {0, 0};
-    std::vector<float, TableAllocator<float>> m_rows;
+    size_t m_record_floats = 0;
+    std::vector<float, TableAllocator<float>> m_records;
 };
 
 }  // namespace btf::mlvq

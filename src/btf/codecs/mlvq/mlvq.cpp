@@ -52,7 +52,7 @@
 #include <limits>
 #include <set>
 #include <tuple>
-#ifdef __AVX512F__
+#if defined(__AVX2__) || defined(__AVX512F__)
 #include <immintrin.h>
 #endif
 
@@ -354,6 +354,12 @@ void prefetch_range(const void* begin, const void* end) {
     const uintptr_t line = 64, last = reinterpret_cast<uintptr_t>(end) | (line - 1);
     for (uintptr_t a = reinterpret_cast<uintptr_t>(begin) & ~(line - 1); a <= last; a += line)
         __builtin_prefetch(reinterpret_cast<const void*>(a));
+}
+
+// Hints the lines of α rows i and i + 1 of entry m's luminance halves: what a draw of β reads.
+void prefetch_luminance_rows(const DecodedBooks& d, uint32_t m, int i) {
+    const char* row = static_cast<const char*>(d.luminance_row(m, i));
+    prefetch_range(row, row + 2 * sizeof(uint16_t) * size_t(d.grid().n_beta) - 1);
 }
 
 // A number into [0, 1): ShadingPoint's clamp of the filter number, and of sampling's (ξ1, ξ2)
@@ -663,34 +669,67 @@ struct MlvqMaterial::Mixture {
 
 namespace {
 
+// Draws whose inverse CDFs are found together (inverse_cdfs()): each step of the inversion is
+// issued for all of them, so that their chains of dependent instructions overlap. One draw's
+// chain (running sums, segment, square root, division) is longer than the core looks ahead
+// past, and draws one after another would wait out each other's latencies.
+constexpr int kDraws = 4;
+
 // The fractional sample index within segment i (end values a, b; the cumulative mass `low` at
 // its start) where the mass reaches `target`: within a segment the mass up to t ∈ [0, 1] is
 // a t + (b − a) t² / 2, and t the root 2 r / (a + √(a² + 2 (b − a) r)) of a t + (b − a) t² / 2
 // = r, a form that stays exact as b → a (it is r / a there). In floats (a and b are) and without
 // branches: the draws are random, and a branch on them would mispredict.
-double invert_segment(int i, double low, float a, float b, double target) {
+double invert_segment(int i, float low, float a, float b, double target) {
     const float segment = 0.5f * (a + b);
-    // std::clamp's order (NaN passes) without its precondition 0 ≤ segment, which a crafted
-    // negative sample breaks.
-    float r = float(target - low);
-    r = r < 0 ? 0.0f : segment < r ? segment : r;
+    // Into [0, segment]; NaN (from a NaN target) to 0.
+    float r = float(target - double(low));
+    r = std::min(r > 0 ? r : 0.0f, segment);
     const float denominator = a + std::sqrt(std::max(0.0f, a * a + 2 * (b - a) * r));
     // A segment of no mass (or a crafted a < 0) has no root to find: its middle, or its start.
     const float x = denominator > 0 ? 2 * r / denominator : segment > 0 ? 0.0f : 0.5f;
-    // Into [0, 1], NaN (a NaN target, from a share of 0 / 0) to 0: the caller truncates it to
+    // Into [0, 1], NaN (a share of 0 / 0, a crafted sample) to 0: the caller truncates it to
     // an index.
     return i + double(x > 0 ? std::min(x, 1.0f) : 0.0f);
 }
 
-// Inverse CDF of a density that is linear between samples v[0 … n−1] (unit spacing), given the
-// target mass in [0, Σ trapezoids): the fractional sample index. The segment is the number of
-// segments whose cumulative mass the target reaches (the last one takes any excess), counted
-// over all of them rather than found by a loop that stops there: a random target would
-// mispredict that loop's exit once per draw, and the draws of sampling are random.
+// invert_segment() for the kDraws draws of the arrays, in the lanes of vectors where the CPU
+// has them (the same operations lane by lane).
+void invert_segments(const int* i, const float* low, const float* a, const float* b,
+                     const double* target, double* out) {
+#if defined(__AVX2__) && defined(__FMA__)
+    static_assert(kDraws == 4);
+    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    const __m128 va = _mm_loadu_ps(a), vb = _mm_loadu_ps(b);
+    const __m128 segment = _mm_mul_ps(_mm_set1_ps(0.5f), _mm_add_ps(va, vb));
+    __m128 r =
+        _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_loadu_pd(target), _mm256_cvtps_pd(_mm_loadu_ps(low))));
+    r = _mm_min_ps(_mm_max_ps(r, zero), segment);  // maxps gives its second operand for a NaN
+    const __m128 twice_slope = _mm_add_ps(_mm_sub_ps(vb, va), _mm_sub_ps(vb, va));
+    const __m128 discriminant = _mm_max_ps(_mm_fmadd_ps(twice_slope, r, _mm_mul_ps(va, va)), zero);
+    const __m128 denominator = _mm_add_ps(va, _mm_sqrt_ps(discriminant));
+    const __m128 root = _mm_div_ps(_mm_add_ps(r, r), denominator);
+    const __m128 fallback = _mm_andnot_ps(_mm_cmpgt_ps(segment, zero), _mm_set1_ps(0.5f));
+    __m128 x = _mm_blendv_ps(fallback, root, _mm_cmpgt_ps(denominator, zero));
+    x = _mm_and_ps(_mm_cmpgt_ps(x, zero), _mm_min_ps(x, one));
+    alignas(16) float t[kDraws];
+    _mm_store_ps(t, x);
+    for (int k = 0; k < kDraws; ++k) out[k] = i[k] + double(t[k]);
+#else
+    for (int k = 0; k < kDraws; ++k) out[k] = invert_segment(i[k], low[k], a[k], b[k], target[k]);
+#endif
+}
+
+// The segment of a density linear between samples v[0 … n−1] (unit spacing) where the mass
+// reaches `target` (in [0, Σ trapezoids)), and the mass below it: the number of segments whose
+// cumulative mass the target reaches (the last one takes any excess), counted over all of them
+// rather than found by a loop that stops there (the draws are random: that loop's exit would
+// mispredict once per draw).
 template <typename Value>
-double invert_linear_loop(Value v, int n, double target) {
+int find_segment(Value v, int n, double target, double& low) {
     int i = 0;
-    double low = 0, cumulative = 0, a = v(0);
+    double cumulative = 0, a = v(0);
+    low = 0;
     for (int k = 0; k + 2 < n; ++k) {
         const double b = v(k + 1);
         cumulative += 0.5 * (a + b);
@@ -699,82 +738,147 @@ double invert_linear_loop(Value v, int n, double target) {
         low = below ? cumulative : low;
         a = b;
     }
-    return invert_segment(i, low, v(i), v(i + 1), target);
+    return i;
 }
 
 #ifdef __AVX512F__
 constexpr int kRowLanes = 16;  ///< samples of a row that one vector holds
 
+// The shuffles below are the zero-masking forms with every lane kept: the same instruction, and
+// GCC 12 warns of an uninitialized variable inside the unmasked forms where they are inlined.
+constexpr __mmask16 kAllLanes = 0xffff;
+
+// Lane i of the result is v[i + K] (0 from 16 − K).
+template <int K>
+__m512 lanes_down(__m512 v, __m512 zero) {
+    return _mm512_castsi512_ps(
+        _mm512_maskz_alignr_epi32(kAllLanes, _mm512_castps_si512(zero), _mm512_castps_si512(v), K));
+}
 // Lane i of the result is v[i − K] (0 below K).
 template <int K>
 __m512 lanes_up(__m512 v, __m512 zero) {
-    return _mm512_castsi512_ps(
-        _mm512_alignr_epi32(_mm512_castps_si512(v), _mm512_castps_si512(zero), kRowLanes - K));
+    return _mm512_castsi512_ps(_mm512_maskz_alignr_epi32(kAllLanes, _mm512_castps_si512(v),
+                                                         _mm512_castps_si512(zero), kRowLanes - K));
 }
 float lane(__m512 v, int i) {
-    return _mm512_cvtss_f32(_mm512_permutexvar_ps(_mm512_set1_epi32(i), v));
+    return _mm512_cvtss_f32(_mm512_maskz_permutexvar_ps(kAllLanes, _mm512_set1_epi32(i), v));
 }
 
-// invert_linear_loop() for the n ≤ 16 samples in the lanes of v (float sums): the trapezoids
-// at once, their running sums in four shifted additions and the segment as the count of sums
-// the target reaches (one mask), without the loop's chain of n − 2 dependent additions.
-double invert_linear_lanes(__m512 v, int n, double target) {
-    const __m512 zero = _mm512_setzero_ps();
+// The fractional indices at which the densities in the lanes of v[k] (n ≤ 16 samples each)
+// reach target[k], k < kDraws (float sums): find_segment() by vectors, the trapezoids at once,
+// their running sums in four shifted additions and the segment as the count of sums the
+// target reaches (one mask).
+// (Inlined, and its loops unrolled, so that the vectors stay in registers.)
+[[gnu::always_inline]] inline void invert_linear_lanes(const __m512* v, int n, const double* target,
+                                                       double* out) {
+    const __m512 zero = _mm512_setzero_ps(), half = _mm512_set1_ps(0.5f);
     const __mmask16 segments = __mmask16((1u << (n - 1)) - 1);
-    const __m512 next = _mm512_castsi512_ps(
-        _mm512_alignr_epi32(_mm512_castps_si512(zero), _mm512_castps_si512(v), 1));  // v[i + 1]
-    __m512 c = _mm512_maskz_mul_ps(segments, _mm512_set1_ps(0.5f), _mm512_add_ps(v, next));
-    c = _mm512_add_ps(c, lanes_up<1>(c, zero));
-    c = _mm512_add_ps(c, lanes_up<2>(c, zero));
-    c = _mm512_add_ps(c, lanes_up<4>(c, zero));
-    c = _mm512_add_ps(c, lanes_up<8>(c, zero));
-    const __mmask16 below =
-        _mm512_mask_cmp_ps_mask(segments >> 1, c, _mm512_set1_ps(float(target)), _CMP_LE_OQ);
-    const int i = std::popcount(unsigned(below));
-    const double low = i > 0 ? lane(c, i - 1) : 0.0;
-    return invert_segment(i, low, lane(v, i), lane(v, i + 1), target);
+    __m512 c[kDraws];
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k)
+        c[k] = _mm512_maskz_mul_ps(segments, half, _mm512_add_ps(v[k], lanes_down<1>(v[k], zero)));
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k) c[k] = _mm512_add_ps(c[k], lanes_up<1>(c[k], zero));
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k) c[k] = _mm512_add_ps(c[k], lanes_up<2>(c[k], zero));
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k) c[k] = _mm512_add_ps(c[k], lanes_up<4>(c[k], zero));
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k) c[k] = _mm512_add_ps(c[k], lanes_up<8>(c[k], zero));
+    int i[kDraws];
+    float low[kDraws], a[kDraws], b[kDraws];
+#pragma GCC unroll 4
+    for (int k = 0; k < kDraws; ++k) {
+        const __mmask16 below = _mm512_mask_cmp_ps_mask(
+            segments >> 1, c[k], _mm512_set1_ps(float(target[k])), _CMP_LE_OQ);
+        i[k] = std::popcount(unsigned(below));
+        low[k] = lane(lanes_up<1>(c[k], zero), i[k]);  // the sum below segment i, 0 for i = 0
+        a[k] = lane(v[k], i[k]);
+        b[k] = lane(v[k], i[k] + 1);
+    }
+    invert_segments(i, low, a, b, target, out);
 }
 #endif
 
-// The fractional α index at which the row masses rows[0 … n − 1] (floats) reach `target`.
-double invert_rows(const float* rows, int n, double target) {
-#ifdef __AVX512F__
-    if (n <= kRowLanes)
-        return invert_linear_lanes(_mm512_maskz_loadu_ps(__mmask16((1u << n) - 1), rows), n,
-                                   target);
-#endif
-    return invert_linear_loop([rows](int i) { return double(rows[i]); }, n, target);
+// The fractional index at which a density linear between samples v[0 … n−1] reaches `target`.
+template <typename Value>
+double invert_linear_loop(Value v, int n, double target) {
+    double low;
+    const int i = find_segment(v, n, target, low);
+    return invert_segment(i, float(low), float(v(i)), float(v(i + 1)), target);
 }
 
-// The fractional β index at which the luminance of the column t0 · (row i0) + t1 · (row i0 + 1)
-// of an entry (decoded.h: tiles) reaches `target`.
-double invert_column(const DecodedBooks& d, const DecodedBooks::Sample* entry, int i0, float t0,
-                     float t1, double target) {
-    const int n = d.grid().n_beta;
-    const DecodedBooks::Sample* row0 = entry + d.row_base(i0);
-    const DecodedBooks::Sample* row1 = row0 + DecodedBooks::kTile;
-    const int32_t* at = d.beta_offsets();
+// The fractional α indices at which the row masses rows[k][0 … n − 1] (floats) reach
+// target[k], for the draws k < count ≤ kDraws whose rows are not null.
+void invert_rows(const float* const* rows, int count, int n, const double* target, double* out) {
 #ifdef __AVX512F__
     if (n <= kRowLanes) {
-        // The luminance halves are the low 16 bits of each sample's 32 (x86 is little-endian).
-        static_assert(sizeof(DecodedBooks::Sample) == 4 && offsetof(DecodedBooks::Sample, y) == 0);
         const __mmask16 mask = __mmask16((1u << n) - 1);
-        const __m512i index = _mm512_maskz_loadu_epi32(mask, at);
-        auto luminance = [mask, index](const DecodedBooks::Sample* row) {
-            const __m512i samples =
-                _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), mask, index, row, 4);
-            return _mm512_cvtph_ps(_mm512_cvtepi32_epi16(samples));
-        };
-        const __m512 column = _mm512_add_ps(_mm512_mul_ps(_mm512_set1_ps(t0), luminance(row0)),
-                                            _mm512_mul_ps(_mm512_set1_ps(t1), luminance(row1)));
-        return invert_linear_lanes(column, n, target);
+        __m512 v[kDraws];
+        double t[kDraws];
+#pragma GCC unroll 4
+        for (int k = 0; k < kDraws; ++k) {
+            const bool drawn = k < count && rows[k];
+            v[k] = drawn ? _mm512_maskz_loadu_ps(mask, rows[k]) : _mm512_setzero_ps();
+            t[k] = drawn ? target[k] : 0;
+        }
+        invert_linear_lanes(v, n, t, out);
+        return;
     }
 #endif
-    float column[MlvqGrid::kMaxAxis];
-    for (int j = 0; j < n; ++j)
-        column[j] =
-            t0 * DecodedBooks::luminance(row0[at[j]]) + t1 * DecodedBooks::luminance(row1[at[j]]);
-    return invert_linear_loop([&column](int j) { return double(column[j]); }, n, target);
+    for (int k = 0; k < count; ++k)
+        if (rows[k])
+            out[k] = invert_linear_loop([&](int i) { return double(rows[k][i]); }, n, target[k]);
+}
+
+// A β draw: the column t0 · (row i0) + t1 · (row i0 + 1) of an entry's luminance (its sampling
+// record's halves from row i0 on: DecodedBooks::luminance_row()), and the mass to reach along it.
+struct ColumnDraw {
+    const void* rows = nullptr;  ///< null: nothing to draw
+    float t0 = 0, t1 = 0;
+    double target = 0;
+};
+
+// The fractional β indices at which the draws' columns reach their targets (count ≤ kDraws).
+void invert_columns(int n, const ColumnDraw* draws, int count, double* out) {
+#ifdef __AVX512F__
+    if (n <= kRowLanes) {
+        // A row's n halves as the low halves of ⌈n / 2⌉ 32-bit lanes (the record's halves are an
+        // even count, so the last row's pair lies within it), widened in the n lanes.
+        const __mmask16 pairs = __mmask16((1u << ((n + 1) / 2)) - 1);
+        const __mmask16 lanes = __mmask16((1u << n) - 1);
+        auto row = [pairs, lanes](const void* halves) {
+            return _mm512_maskz_cvtph_ps(
+                lanes, _mm512_castsi512_si256(_mm512_maskz_loadu_epi32(pairs, halves)));
+        };
+        __m512 column[kDraws];
+        double target[kDraws];
+#pragma GCC unroll 4
+        for (int k = 0; k < kDraws; ++k) {
+            column[k] = _mm512_setzero_ps(), target[k] = 0;
+            if (k >= count || !draws[k].rows) continue;
+            const ColumnDraw& c = draws[k];
+            const char* row0 = static_cast<const char*>(c.rows);
+            column[k] = _mm512_fmadd_ps(
+                _mm512_set1_ps(c.t0), row(row0),
+                _mm512_mul_ps(_mm512_set1_ps(c.t1), row(row0 + sizeof(uint16_t) * size_t(n))));
+            target[k] = c.target;
+        }
+        invert_linear_lanes(column, n, target, out);
+        return;
+    }
+#endif
+    for (int k = 0; k < count; ++k) {
+        const ColumnDraw& c = draws[k];
+        if (!c.rows) continue;
+        const char* row0 = static_cast<const char*>(c.rows);
+        const char* row1 = row0 + sizeof(uint16_t) * size_t(n);
+        float column[MlvqGrid::kMaxAxis];
+        for (int j = 0; j < n; ++j)
+            column[j] = c.t0 * DecodedBooks::luminance_at(row0, j) +
+                        c.t1 * DecodedBooks::luminance_at(row1, j);
+        out[k] = invert_linear_loop([&column](int j) { return double(column[j]); }, n, c.target);
+    }
 }
 
 // Uniform hemisphere: (ξ1, ξ2) → direction, pdf 1 / 2π.
@@ -825,46 +929,69 @@ void MlvqMaterial::sample_mixture(SampleState& s) const {
     if (!std::isfinite(s.mix.total)) s.mix.total = 0;
 }
 
-// The component, then α by the inverse CDF of its row masses (ξ1 rescaled within its share).
-void MlvqMaterial::sample_alpha(SampleState& s) const {
-    if (!(s.mix.total > 0)) return;
-    double target = s.xi1 * s.mix.total;
-    int c = 0;
-    while (c + 1 < s.mix.g.count && (target >= s.mix.mass[c] || s.mix.mass[c] == 0))
-        target -= s.mix.mass[c++];
-    const double share = std::clamp(target / s.mix.mass[c], 0.0, 1.0);
+// The component, then α by the inverse CDF of its row masses (ξ1 rescaled within its share),
+// for states[0 … count − 1] (count ≤ kDraws, their inversions together).
+void MlvqMaterial::sample_alpha(SampleState* states, size_t count) const {
     const int n_alpha = m_books->grid.n_alpha;
-    const float* rows = m_decoded->rows(s.mix.g.index[c]);
-    s.component = c;
-    s.x = invert_rows(rows, n_alpha, share * rows[n_alpha]);
-    s.i0 = std::min(int(s.x), n_alpha - 2);
+    const float* rows[kDraws] = {};
+    double target[kDraws], x[kDraws];
+    for (size_t k = 0; k < count; ++k) {
+        SampleState& s = states[k];
+        if (!(s.mix.total > 0)) continue;
+        double mass = s.xi1 * s.mix.total;
+        int c = 0;
+        while (c + 1 < s.mix.g.count && (mass >= s.mix.mass[c] || s.mix.mass[c] == 0))
+            mass -= s.mix.mass[c++];
+        const double share = std::clamp(mass / s.mix.mass[c], 0.0, 1.0);
+        s.component = c;
+        rows[k] = m_decoded->rows(s.mix.g.index[c]);
+        target[k] = share * rows[k][n_alpha];
+    }
+    invert_rows(rows, int(count), n_alpha, target, x);
+    for (size_t k = 0; k < count; ++k) {
+        if (!rows[k]) continue;
+        states[k].x = x[k];
+        states[k].i0 = std::min(int(x[k]), n_alpha - 2);
+    }
 }
 
 // u by the inverse CDF of the conditional along the two neighbouring rows; the direction and
-// the light weights of (α, u) (what lookup(wi, wo) returns up to rounding).
-void MlvqMaterial::sample_beta(SampleState& s) const {
+// the light weights of (α, u) (what lookup(wi, wo) returns up to rounding). For states[0 …
+// count − 1] (count ≤ kDraws, their inversions together).
+void MlvqMaterial::sample_beta(SampleState* states, size_t count) const {
     const MlvqGrid& g = m_books->grid;
-    if (!(s.mix.total > 0)) {
-        s.out.wi = uniform_hemisphere(s.xi1, s.xi2);
-        return;
+    ColumnDraw draws[kDraws];
+    double y[kDraws];
+    for (size_t k = 0; k < count; ++k) {
+        const SampleState& s = states[k];
+        if (!(s.mix.total > 0)) continue;
+        // The column at α blends the two rows' luminances; its trapezoid sum is linear in the
+        // rows': their precomputed integrals blended.
+        const double tx = s.x - s.i0;
+        const uint32_t m = s.mix.g.index[s.component];
+        const float* rows = m_decoded->rows(m);
+        const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
+        draws[k] = {m_decoded->luminance_row(m, s.i0), float(1 - tx), float(tx), s.xi2 * row_mass};
     }
-    const double tx = s.x - s.i0;
-    // The column at α blends the two rows' luminances (rows of the same tiles); its trapezoid
-    // sum is linear in the rows': their precomputed integrals blended.
-    const float* rows = m_decoded->rows(s.mix.g.index[s.component]);
-    const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
-    s.y = invert_column(*m_decoded, s.mix.g.entry[s.component], s.i0, float(1 - tx), float(tx),
-                        s.xi2 * row_mass);
-    const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
-    const double u = -1 + 2 * s.y / (g.n_beta - 1);
-    s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);
-    s.out.wi.z = std::max(s.out.wi.z, 0.0);
-    if (s.stochastic) return;  // the corners of wi itself: selected_corners()
-    MlvqWeights w = s.mix.view.weights;
-    const int j0 = std::min(int(s.y), g.n_beta - 2);
-    w.alpha = {{s.i0, s.i0 + 1}, {float(1 - tx), float(tx)}};
-    w.beta = {{j0, j0 + 1}, {float(1 - (s.y - j0)), float(s.y - j0)}};
-    s.mix.g.corners = DecodedBooks::Corners(g, w);
+    invert_columns(g.n_beta, draws, int(count), y);
+    for (size_t k = 0; k < count; ++k) {
+        SampleState& s = states[k];
+        if (!draws[k].rows) {
+            s.out.wi = uniform_hemisphere(s.xi1, s.xi2);
+            continue;
+        }
+        s.y = y[k];
+        const double tx = s.x - s.i0;
+        const double alpha = -kPi / 2 + kPi * s.x / (g.n_alpha - 1);
+        const double u = -1 + 2 * s.y / (g.n_beta - 1);
+        s.out.wi = direction_from_onion_u(alpha, u, s.mix.view.frame);
+        s.out.wi.z = std::max(s.out.wi.z, 0.0);
+        MlvqWeights w = s.mix.view.weights;
+        const int j0 = std::min(int(s.y), g.n_beta - 2);
+        w.alpha = {{s.i0, s.i0 + 1}, {float(1 - tx), float(tx)}};
+        w.beta = {{j0, j0 + 1}, {float(1 - (s.y - j0)), float(s.y - j0)}};
+        s.mix.g.corners = DecodedBooks::Corners(g, w);
+    }
 }
 
 // The model at the drawn direction: its value, and its luminance over the mixture's mass as pdf.
@@ -892,8 +1019,8 @@ LightSample MlvqMaterial::sample(const Uv& uv, const Vec3& wo, double xi1, doubl
     sample_begin({uv, wo, xi1, xi2}, s);
     gather(s.corners, s.mix.view.weights, s.mix.g);
     sample_mixture(s);
-    sample_alpha(s);
-    sample_beta(s);
+    sample_alpha(&s, 1);
+    sample_beta(&s, 1);
     sample_finish(s);
     return s.out;
 }
@@ -920,18 +1047,17 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
             for (int c = 0; c < s.mix.g.count; ++c)
                 __builtin_prefetch(m_decoded->rows(s.mix.g.index[c]));
         }
-        for (size_t i = 0; i < n; ++i) {
-            SampleState& s = group[i];
-            sample_mixture(s);
-            sample_alpha(s);
-            const DecodedBooks::Sample* tiles =
-                m_decoded->tile_row(s.mix.g.index[s.component], s.i0);
-            prefetch_range(tiles, tiles + m_decoded->tile_row_size() - 1);
+        for (size_t i = 0; i < n; ++i) sample_mixture(group[i]);
+        for (size_t i = 0; i < n; i += kDraws) {
+            sample_alpha(&group[i], std::min<size_t>(kDraws, n - i));
+            for (size_t k = i; k < std::min<size_t>(i + kDraws, n); ++k)
+                prefetch_luminance_rows(*m_decoded, group[k].mix.g.index[group[k].component],
+                                        group[k].i0);
         }
-        for (size_t i = 0; i < n; ++i) {
-            sample_beta(group[i]);
+        for (size_t i = 0; i < n; i += kDraws)
+            sample_beta(&group[i], std::min<size_t>(kDraws, n - i));
+        for (size_t i = 0; i < n; ++i)
             for (int c = 0; c < group[i].mix.g.count; ++c) group[i].mix.g.prefetch(c);
-        }
         for (size_t i = 0; i < n; ++i) {
             sample_finish(group[i]);
             out[begin + i] = group[i].out;
@@ -1078,21 +1204,6 @@ void MlvqMaterial::sample_selected_begin(const Selection& s, const Uv& uv, const
     out.selection = s;
 }
 
-// The (α, β) corners of the drawn directions of states[0 … n − 1] (n ≤ 4), through
-// lookup_lights() as eval_selected() and pdf_selected() find them rather than from the drawn
-// (α, u), which the direction reproduces only up to rounding: the sample's value and pdf are
-// then exactly what eval_selected() and pdf_selected() return for its direction, as multiple
-// importance sampling needs.
-void MlvqMaterial::selected_corners(SampleState* states, size_t n) const {
-    Vec3 wi[4];
-    ViewLookup view[4];
-    MlvqWeights w[4];
-    for (size_t i = 0; i < n; ++i) wi[i] = states[i].out.wi, view[i] = states[i].mix.view;
-    lookup_lights(m_books->grid, wi, view, n, w);
-    for (size_t i = 0; i < n; ++i)
-        states[i].mix.g.corners = DecodedBooks::Corners(m_books->grid, w[i]);
-}
-
 LightSample MlvqMaterial::sample_selected(const Selection& s, const Uv& uv, const Vec3& wo,
                                           double xi1, double xi2) const {
     SampleState st;
@@ -1101,9 +1212,8 @@ LightSample MlvqMaterial::sample_selected(const Selection& s, const Uv& uv, cons
     sample_selected_begin(s, uv, wo, view, xi1, xi2, st);
     gather_selected(s, st.mix.g);
     sample_mixture(st);
-    sample_alpha(st);
-    sample_beta(st);
-    selected_corners(&st, 1);
+    sample_alpha(&st, 1);
+    sample_beta(&st, 1);
     sample_finish(st);
     return st.out;
 }
@@ -1230,10 +1340,12 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
                                            std::span<LightSample> out) const {
     if (queries.size() != out.size())
         fail("sample_stochastic_batch: {} queries but {} outputs", queries.size(), out.size());
-    // sample_selected()'s stages: the view and the draw, P6, the view entry, the entry's row
-    // masses and α, the two α rows drawn and β.
+    // sample_selected()'s stages: the view and the draw; P6; the view entry; its M entry's
+    // sampling record (all of it, 5 lines at the default grid: the rows that β reads are known
+    // only once α is drawn, and a prefetch issued then arrives too late) and the draws of α and
+    // β; the corners' tile and the value.
     constexpr size_t kStages = 5;
-    static_assert(kBlock <= 4, "selected_corners() takes 4 states at most");
+    static_assert(kBlock <= kDraws, "a block's draws are inverted together");
     SampleState ring[kStages][kBlock];
     const MlvqGrid& grid = m_books->grid;
     auto p6 = [this](const Selection& s) -> const IndexScale& {
@@ -1267,21 +1379,16 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
                 for (size_t i = 0; i < count; ++i) {
                     gather_selected(s[i].selection, s[i].mix.g);
                     const float* rows = m_decoded->rows(s[i].mix.g.index[0]);
-                    prefetch_range(rows, rows + grid.n_alpha);
+                    prefetch_range(rows, rows + m_decoded->record_floats() - 1);
                 }
                 break;
             case 3:
-                for (size_t i = 0; i < count; ++i) {
-                    sample_mixture(s[i]);
-                    sample_alpha(s[i]);
-                    const DecodedBooks::Sample* tiles =
-                        m_decoded->tile_row(s[i].mix.g.index[0], s[i].i0);
-                    prefetch_range(tiles, tiles + m_decoded->tile_row_size() - 1);
-                }
+                for (size_t i = 0; i < count; ++i) sample_mixture(s[i]);
+                sample_alpha(s, count);
+                sample_beta(s, count);
+                for (size_t i = 0; i < count; ++i) s[i].mix.g.prefetch(0);
                 break;
             default:
-                for (size_t i = 0; i < count; ++i) sample_beta(s[i]);
-                selected_corners(s, count);
                 for (size_t i = 0; i < count; ++i) {
                     sample_finish(s[i]);
                     out[first + i] = s[i].out;

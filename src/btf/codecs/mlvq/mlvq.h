@@ -110,12 +110,13 @@ class MlvqMaterial final : public Material {
     /// (eval_selected()). Its mean over u is eval() with YCbCr colour (linear in the planes);
     /// with LogLuv it is the mean of decoded terms, which differs from eval()'s one decoding of
     /// blended planes (docs/codecs.md). Sampling draws from that one entry's luminance, as
-    /// sample() draws from a component of its mixture, and reports exactly eval_selected() and
-    /// pdf_selected() of the drawn direction. These batches pipeline the stages of many queries,
+    /// sample() draws from a component of its mixture, and reports its value and pdf at the drawn
+    /// (α, u), which eval_selected() and pdf_selected() of the drawn direction give back to within
+    /// rounding (as sample() and pdf() do). These batches pipeline the stages of many queries,
     /// prefetching each level of the chain a stage ahead; the results equal ShadingPoint's, bit
-    /// for bit. One thread, random queries, 256² woven_fabric at the default grid: 5.4 M/s
-    /// evaluated and 3.1 M/s sampled, against 2.8 and 1.5 M/s for eval_batch and sample_batch
-    /// in the same run.
+    /// for bit. One thread, random queries, 256² woven_fabric at the default grid: 6–9 M/s
+    /// evaluated and 4.9–5.9 M/s sampled, against 1.3–1.4 M/s for sample_batch (docs/
+    /// benchmarks.md).
     void eval_stochastic_batch(std::span<const StochasticQuery> queries,
                                std::span<Rgb> out) const override;
     void sample_stochastic_batch(std::span<const StochasticSampleQuery> queries,
@@ -157,8 +158,8 @@ class MlvqMaterial final : public Material {
     struct SampleState;
     void sample_begin(const SampleQuery& q, SampleState& s) const;
     void sample_mixture(SampleState& s) const;
-    void sample_alpha(SampleState& s) const;
-    void sample_beta(SampleState& s) const;
+    void sample_alpha(SampleState* states, size_t count) const;
+    void sample_beta(SampleState* states, size_t count) const;
     void sample_finish(SampleState& s) const;
 
     /// The selections of count ≤ kPickLanes queries (query i: queries[i].uv, view[i],
@@ -168,7 +169,6 @@ class MlvqMaterial final : public Material {
                       Selection* out) const;
     void gather_selected(const Selection& s, Gathered& out) const;
     DecodedBooks::Corners light_corners(const Vec3& wi, const Vec3& wo) const;
-    void selected_corners(SampleState* states, size_t n) const;
     void sample_selected_begin(const Selection& s, const Uv& uv, const Vec3& wo,
                                const ViewLookup& view, double xi1, double xi2,
                                SampleState& out) const;

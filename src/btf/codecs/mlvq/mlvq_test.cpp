@@ -341,8 +341,8 @@ TEST(MlvqDecoded, EqualsTheCodeBookChain) {
 
 // Decoded entries lie in 4 × 4 tiles that overlap by a sample: every copy of a sample holds the
 // same bits, the 2 × 2 corners of every (α, β) window lie in one tile (two 8-byte reads, α rows
-// kTile apart) within one cache line, and the rows that sampling reads through row_base() and
-// beta_offsets() are the samples. Grids of 7 × 7 (tiles overlapping at the end) and 11 × 12
+// kTile apart) within one cache line, and the sampling record holds the same luminance row by
+// row, line-aligned. Grids of 7 × 7 (tiles overlapping at the end) and 11 × 12
 // (the paper's α; an axis that the tiles do not end on).
 TEST(MlvqDecoded, TilesHoldEveryWindowInOneLine) {
     for (const auto& [n_alpha, n_beta] : {std::pair{7, 7}, std::pair{11, 12}}) {
@@ -365,17 +365,20 @@ TEST(MlvqDecoded, TilesHoldEveryWindowInOneLine) {
                     EXPECT_TRUE(same(e[off + 1], d.sample(m, i, j + 1)));
                     EXPECT_TRUE(same(e[off + DecodedBooks::kTile], d.sample(m, i + 1, j)));
                     EXPECT_TRUE(same(e[off + DecodedBooks::kTile + 1], d.sample(m, i + 1, j + 1)));
-                    EXPECT_TRUE(same(e[d.row_base(i) + d.beta_offsets()[j]], d.sample(m, i, j)));
-                    EXPECT_TRUE(same(e[d.row_base(i) + DecodedBooks::kTile + d.beta_offsets()[j]],
-                                     d.sample(m, i + 1, j)));
                 }
-            // The tile row of α rows i, i + 1 holds what sampling reads of them.
-            for (int i = 0; i + 1 < g.n_alpha; ++i) {
-                const DecodedBooks::Sample* tiles = d.tile_row(m, i);
-                EXPECT_GE(e + d.row_base(i), tiles);
-                EXPECT_LT(e + d.row_base(i) + DecodedBooks::kTile + d.beta_offsets()[g.n_beta - 1],
-                          tiles + d.tile_row_size());
+            ASSERT_EQ(reinterpret_cast<uintptr_t>(d.rows(m)) % 64, 0u);
+            const char* halves = static_cast<const char*>(d.luminance_row(m, 0));
+            ASSERT_EQ(halves, reinterpret_cast<const char*>(d.rows(m) + g.n_alpha + 1));
+            for (int i = 0; i < g.n_alpha; ++i) {
+                ASSERT_EQ(d.luminance_row(m, i), halves + 2 * i * g.n_beta);
+                for (int j = 0; j < g.n_beta; ++j)
+                    EXPECT_EQ(DecodedBooks::luminance_at(d.luminance_row(m, i), j),
+                              DecodedBooks::luminance(d.sample(m, i, j)))
+                        << i << " " << j;
             }
+            // The record holds the halves, padded to whole lines.
+            EXPECT_EQ(d.record_floats() % 16, 0u);
+            EXPECT_GE(d.record_floats() * 4, size_t(g.n_alpha + 1) * 4 + 2 * g.n_alpha * g.n_beta);
         }
         // Each decoded value equals the code-book chain (checked above for the default grid).
         for (int i = 0; i < g.n_alpha; ++i)
