@@ -21,10 +21,12 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
     const MlvqGrid& g = m_grid;
     const int n_views = g.n_phi_v * g.n_theta_v;
     m_per_entry = size_t(tiles(g.n_alpha)) * size_t(tiles(g.n_beta)) * kTile * kTile;
-    const size_t halves = size_t(g.n_alpha) * size_t(g.n_beta);
-    const size_t line_floats = 64 / sizeof(float);
-    m_record_floats =
-        (size_t(g.n_alpha) + 1 + (halves + 1) / 2 + line_floats - 1) / line_floats * line_floats;
+    // The row integrals, the halves, and the window of the last row's read; whole lines.
+    const size_t masses = (size_t(g.n_alpha) + 1) * sizeof(float);
+    const size_t last_row = masses + sizeof(uint16_t) * size_t(g.n_alpha - 1) * size_t(g.n_beta);
+    const size_t bytes = std::max(masses + sizeof(uint16_t) * size_t(g.n_alpha) * size_t(g.n_beta),
+                                  last_row + kRowWindow);
+    m_record_floats = (bytes + 63) / 64 * (64 / sizeof(float));
 
     // P4 ∘ P3.
     m_views.resize(b.size_p4() * size_t(n_views));
@@ -50,8 +52,9 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
 
     // M entries: luminance c_P2 · P1 and chromaticity I2 → I1 → C per (α, β) sample.
     // A package's M code-book is bounded by its section's size, its decoded tiles and sampling
-    // records (1 KiB + 320 bytes per entry at the paper's grid) by the allocation limit.
-    const size_t per_entry_bytes = m_per_entry * sizeof(Sample) + m_record_floats * sizeof(float);
+    // records (1 KiB + 48 + 320 bytes per entry at the paper's grid) by the allocation limit.
+    const size_t per_entry_bytes =
+        m_per_entry * sizeof(Sample) + (size_t(g.n_alpha) + 1 + m_record_floats) * sizeof(float);
     check_alloc(checked_bytes(b.size_m(), per_entry_bytes).value_or(UINT64_MAX), "mlvq code-books",
                 fmt::format("decoding the {} entries of M", b.size_m()));
     m_samples.resize(b.size_m() * m_per_entry);
@@ -86,7 +89,8 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
 
     // Sampling records: the row integrals over β of each entry's luminance (trapezoid in
     // sample-index units) and their integral over α, what importance sampling picks rows and
-    // components with, then the luminance halves row by row.
+    // components with, then the luminance halves row by row; and the row integrals once more,
+    // packed.
     m_records.resize(b.size_m() * m_record_floats);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
         float* r = m_records.data() + size_t(e) * m_record_floats;
@@ -104,6 +108,12 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
             total += (i == 0 || i == g.n_alpha - 1) ? 0.5 * sum : sum;
         }
         r[g.n_alpha] = float(total);
+    });
+    const size_t stride = size_t(g.n_alpha) + 1;
+    m_rows.resize(b.size_m() * stride);
+    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
+        std::memcpy(m_rows.data() + size_t(e) * stride, record(uint32_t(e)),
+                    stride * sizeof(float));
     });
 }
 

@@ -356,10 +356,12 @@ void prefetch_range(const void* begin, const void* end) {
         __builtin_prefetch(reinterpret_cast<const void*>(a));
 }
 
-// Hints the lines of α rows i and i + 1 of entry m's luminance halves: what a draw of β reads.
+// Hints the lines of α rows i and i + 1 of entry m's luminance halves, what a draw of β reads
+// (through the second row's whole window, which invert_columns() loads).
 void prefetch_luminance_rows(const DecodedBooks& d, uint32_t m, int i) {
     const char* row = static_cast<const char*>(d.luminance_row(m, i));
-    prefetch_range(row, row + 2 * sizeof(uint16_t) * size_t(d.grid().n_beta) - 1);
+    prefetch_range(row,
+                   row + sizeof(uint16_t) * size_t(d.grid().n_beta) + DecodedBooks::kRowWindow - 1);
 }
 
 // A number into [0, 1): ShadingPoint's clamp of the filter number, and of sampling's (ξ1, ξ2)
@@ -843,13 +845,13 @@ struct ColumnDraw {
 void invert_columns(int n, const ColumnDraw* draws, int count, double* out) {
 #ifdef __AVX512F__
     if (n <= kRowLanes) {
-        // A row's n halves as the low halves of ⌈n / 2⌉ 32-bit lanes (the record's halves are an
-        // even count, so the last row's pair lies within it), widened in the n lanes.
-        const __mmask16 pairs = __mmask16((1u << ((n + 1) / 2)) - 1);
+        // A row's n halves from one load of 16 (the record holds that window of every row),
+        // widened in n lanes.
+        static_assert(DecodedBooks::kRowWindow == sizeof(__m256i));
         const __mmask16 lanes = __mmask16((1u << n) - 1);
-        auto row = [pairs, lanes](const void* halves) {
-            return _mm512_maskz_cvtph_ps(
-                lanes, _mm512_castsi512_si256(_mm512_maskz_loadu_epi32(pairs, halves)));
+        auto row = [lanes](const void* halves) {
+            return _mm512_maskz_cvtph_ps(lanes,
+                                         _mm256_loadu_si256(static_cast<const __m256i*>(halves)));
         };
         __m512 column[kDraws];
         double target[kDraws];
@@ -906,6 +908,12 @@ struct MlvqMaterial::SampleState {
     Selection selection;
 };
 
+// The row integrals of M entry m as the state's sampler reads them: a stochastic shading point's
+// draw from its sampling record (prefetched whole), the mixture's from the packed table.
+const float* MlvqMaterial::row_masses(const SampleState& s, uint32_t m) const {
+    return s.stochastic ? m_decoded->record(m) : m_decoded->rows(m);
+}
+
 // View lookup and texels.
 void MlvqMaterial::sample_begin(const SampleQuery& q, SampleState& s) const {
     s.uv = q.uv;
@@ -921,7 +929,7 @@ void MlvqMaterial::sample_mixture(SampleState& s) const {
     s.mix.total = 0;
     const int n_alpha = m_books->grid.n_alpha;
     for (int c = 0; c < s.mix.g.count; ++c) {
-        const double mass = double(s.mix.g.y_scale[c]) * m_decoded->rows(s.mix.g.index[c])[n_alpha];
+        const double mass = double(s.mix.g.y_scale[c]) * row_masses(s, s.mix.g.index[c])[n_alpha];
         s.mix.mass[c] = mass > 0 ? mass : 0;
         s.mix.total += s.mix.mass[c];
     }
@@ -944,7 +952,7 @@ void MlvqMaterial::sample_alpha(SampleState* states, size_t count) const {
             mass -= s.mix.mass[c++];
         const double share = std::clamp(mass / s.mix.mass[c], 0.0, 1.0);
         s.component = c;
-        rows[k] = m_decoded->rows(s.mix.g.index[c]);
+        rows[k] = row_masses(s, s.mix.g.index[c]);
         target[k] = share * rows[k][n_alpha];
     }
     invert_rows(rows, int(count), n_alpha, target, x);
@@ -969,7 +977,7 @@ void MlvqMaterial::sample_beta(SampleState* states, size_t count) const {
         // rows': their precomputed integrals blended.
         const double tx = s.x - s.i0;
         const uint32_t m = s.mix.g.index[s.component];
-        const float* rows = m_decoded->rows(m);
+        const float* rows = row_masses(s, m);
         const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
         draws[k] = {m_decoded->luminance_row(m, s.i0), float(1 - tx), float(tx), s.xi2 * row_mass};
     }
@@ -1047,17 +1055,22 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
             for (int c = 0; c < s.mix.g.count; ++c)
                 __builtin_prefetch(m_decoded->rows(s.mix.g.index[c]));
         }
-        for (size_t i = 0; i < n; ++i) sample_mixture(group[i]);
+        // Four queries at a time, so that the first ones' prefetches have the others' work to
+        // arrive in.
         for (size_t i = 0; i < n; i += kDraws) {
-            sample_alpha(&group[i], std::min<size_t>(kDraws, n - i));
-            for (size_t k = i; k < std::min<size_t>(i + kDraws, n); ++k)
+            const size_t end = std::min<size_t>(i + kDraws, n);
+            for (size_t k = i; k < end; ++k) sample_mixture(group[k]);
+            sample_alpha(&group[i], end - i);
+            for (size_t k = i; k < end; ++k)
                 prefetch_luminance_rows(*m_decoded, group[k].mix.g.index[group[k].component],
                                         group[k].i0);
         }
-        for (size_t i = 0; i < n; i += kDraws)
-            sample_beta(&group[i], std::min<size_t>(kDraws, n - i));
-        for (size_t i = 0; i < n; ++i)
-            for (int c = 0; c < group[i].mix.g.count; ++c) group[i].mix.g.prefetch(c);
+        for (size_t i = 0; i < n; i += kDraws) {
+            const size_t end = std::min<size_t>(i + kDraws, n);
+            sample_beta(&group[i], end - i);
+            for (size_t k = i; k < end; ++k)
+                for (int c = 0; c < group[k].mix.g.count; ++c) group[k].mix.g.prefetch(c);
+        }
         for (size_t i = 0; i < n; ++i) {
             sample_finish(group[i]);
             out[begin + i] = group[i].out;
@@ -1378,8 +1391,8 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
             case 2:
                 for (size_t i = 0; i < count; ++i) {
                     gather_selected(s[i].selection, s[i].mix.g);
-                    const float* rows = m_decoded->rows(s[i].mix.g.index[0]);
-                    prefetch_range(rows, rows + m_decoded->record_floats() - 1);
+                    const float* record = m_decoded->record(s[i].mix.g.index[0]);
+                    prefetch_range(record, record + m_decoded->record_floats() - 1);
                 }
                 break;
             case 3:

@@ -366,9 +366,10 @@ TEST(MlvqDecoded, TilesHoldEveryWindowInOneLine) {
                     EXPECT_TRUE(same(e[off + DecodedBooks::kTile], d.sample(m, i + 1, j)));
                     EXPECT_TRUE(same(e[off + DecodedBooks::kTile + 1], d.sample(m, i + 1, j + 1)));
                 }
-            ASSERT_EQ(reinterpret_cast<uintptr_t>(d.rows(m)) % 64, 0u);
+            ASSERT_EQ(reinterpret_cast<uintptr_t>(d.record(m)) % 64, 0u);
+            for (int i = 0; i <= g.n_alpha; ++i) EXPECT_EQ(d.record(m)[i], d.rows(m)[i]) << i;
             const char* halves = static_cast<const char*>(d.luminance_row(m, 0));
-            ASSERT_EQ(halves, reinterpret_cast<const char*>(d.rows(m) + g.n_alpha + 1));
+            ASSERT_EQ(halves, reinterpret_cast<const char*>(d.record(m) + g.n_alpha + 1));
             for (int i = 0; i < g.n_alpha; ++i) {
                 ASSERT_EQ(d.luminance_row(m, i), halves + 2 * i * g.n_beta);
                 for (int j = 0; j < g.n_beta; ++j)
