@@ -52,9 +52,8 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
 
     // M entries: luminance c_P2 · P1 and chromaticity I2 → I1 → C per (α, β) sample.
     // A package's M code-book is bounded by its section's size, its decoded tiles and sampling
-    // records (1 KiB + 48 + 320 bytes per entry at the paper's grid) by the allocation limit.
-    const size_t per_entry_bytes =
-        m_per_entry * sizeof(Sample) + (size_t(g.n_alpha) + 1 + m_record_floats) * sizeof(float);
+    // records (1 KiB + 320 bytes per entry at the paper's grid) by the allocation limit.
+    const size_t per_entry_bytes = m_per_entry * sizeof(Sample) + m_record_floats * sizeof(float);
     check_alloc(checked_bytes(b.size_m(), per_entry_bytes).value_or(UINT64_MAX), "mlvq code-books",
                 fmt::format("decoding the {} entries of M", b.size_m()));
     m_samples.resize(b.size_m() * m_per_entry);
@@ -89,8 +88,7 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
 
     // Sampling records: the row integrals over β of each entry's luminance (trapezoid in
     // sample-index units) and their integral over α, what importance sampling picks rows and
-    // components with, then the luminance halves row by row; and the row integrals once more,
-    // packed.
+    // components with, then the luminance halves row by row.
     m_records.resize(b.size_m() * m_record_floats);
     parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
         float* r = m_records.data() + size_t(e) * m_record_floats;
@@ -108,12 +106,6 @@ DecodedBooks::DecodedBooks(const Codebooks& b) : m_grid(b.grid) {
             total += (i == 0 || i == g.n_alpha - 1) ? 0.5 * sum : sum;
         }
         r[g.n_alpha] = float(total);
-    });
-    const size_t stride = size_t(g.n_alpha) + 1;
-    m_rows.resize(b.size_m() * stride);
-    parallel_for(0, int64_t(b.size_m()), [&](int64_t e) {
-        std::memcpy(m_rows.data() + size_t(e) * stride, record(uint32_t(e)),
-                    stride * sizeof(float));
     });
 }
 

@@ -20,8 +20,7 @@
 ///
 /// plus, per entry, a record of what importance sampling reads: the row integrals and the
 /// luminance once more, untiled (sampling reads two whole α rows, which cross every tile of a tile
-/// row: four lines, against one or two here; 320 bytes an entry at the paper's grid), and the
-/// row integrals alone, packed, for the sampler of the deterministic filter.
+/// row: four lines, against one or two here; 320 bytes an entry at the paper's grid).
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -91,18 +90,14 @@ class DecodedBooks {
     /// α-major; offset() finds a sample.
     const Sample* entry(uint32_t m) const { return m_samples.data() + size_t(m) * m_per_entry; }
     const Sample& sample(uint32_t m, int i, int j) const { return entry(m)[offset(m_grid, i, j)]; }
-    /// Per M entry: the row integrals of its luminance over β (trapezoid, sample-index units)
-    /// for each α, then their integral over α: nα + 1 values, packed (a sampler that weighs 16
-    /// entries reads these: 6 MB at the paper's grid for 126 495 entries, against 40 MB of
-    /// records).
-    const float* rows(uint32_t m) const {
-        return m_rows.data() + size_t(m) * (size_t(m_grid.n_alpha) + 1);
-    }
-    /// Entry m's sampling record (64-byte aligned; record_floats() floats): the same nα + 1 row
-    /// integrals, then the luminance samples as IEEE halves, α-major (nα × nβ, packed two to a
-    /// float's bytes), then padding to whole lines that holds the kRowWindow bytes from every
-    /// row's start: what a draw from the one entry reads, in 5 lines at the paper's grid.
+    /// Entry m's sampling record (64-byte aligned; record_floats() floats): the row integrals
+    /// of its luminance over β (trapezoid, sample-index units) for each α and their integral
+    /// over α (nα + 1 floats; the first line at the paper's grid), then the luminance samples
+    /// as IEEE halves, α-major (nα × nβ, packed two to a float's bytes), then padding to whole
+    /// lines that holds the kRowWindow bytes from every row's start: what a draw from the entry
+    /// reads, in 5 lines at the paper's grid. rows(m) is its start, the integrals.
     const float* record(uint32_t m) const { return m_records.data() + size_t(m) * m_record_floats; }
+    const float* rows(uint32_t m) const { return record(m); }
     size_t record_floats() const { return m_record_floats; }
     /// Bytes from a row's first half that a reader may load at once (16 halves: one vector),
     /// all within the record.
@@ -119,11 +114,9 @@ class DecodedBooks {
         return luminance(s);
     }
     size_t size_m() const { return m_per_entry ? m_samples.size() / m_per_entry : 0; }
-    /// Bytes of the decoded entries (tiles, row integrals and sampling records) and of the
-    /// fused views.
+    /// Bytes of the decoded entries (tiles and sampling records) and of the fused views.
     size_t entry_bytes() const {
-        return m_samples.size() * sizeof(Sample) +
-               (m_rows.size() + m_records.size()) * sizeof(float);
+        return m_samples.size() * sizeof(Sample) + m_records.size() * sizeof(float);
     }
     size_t view_bytes() const { return m_views.size() * sizeof(IndexScale); }
 
@@ -146,7 +139,6 @@ class DecodedBooks {
     std::vector<IndexScale, TableAllocator<IndexScale>> m_views;
     std::vector<Sample, TableAllocator<Sample>> m_samples;
     float m_chroma_lo[2] = {0, 0}, m_chroma_step[2] = {0, 0};
-    std::vector<float, TableAllocator<float>> m_rows;
     size_t m_record_floats = 0;
     std::vector<float, TableAllocator<float>> m_records;
 };

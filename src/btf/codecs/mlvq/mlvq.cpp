@@ -908,12 +908,6 @@ struct MlvqMaterial::SampleState {
     Selection selection;
 };
 
-// The row integrals of M entry m as the state's sampler reads them: a stochastic shading point's
-// draw from its sampling record (prefetched whole), the mixture's from the packed table.
-const float* MlvqMaterial::row_masses(const SampleState& s, uint32_t m) const {
-    return s.stochastic ? m_decoded->record(m) : m_decoded->rows(m);
-}
-
 // View lookup and texels.
 void MlvqMaterial::sample_begin(const SampleQuery& q, SampleState& s) const {
     s.uv = q.uv;
@@ -929,7 +923,7 @@ void MlvqMaterial::sample_mixture(SampleState& s) const {
     s.mix.total = 0;
     const int n_alpha = m_books->grid.n_alpha;
     for (int c = 0; c < s.mix.g.count; ++c) {
-        const double mass = double(s.mix.g.y_scale[c]) * row_masses(s, s.mix.g.index[c])[n_alpha];
+        const double mass = double(s.mix.g.y_scale[c]) * m_decoded->rows(s.mix.g.index[c])[n_alpha];
         s.mix.mass[c] = mass > 0 ? mass : 0;
         s.mix.total += s.mix.mass[c];
     }
@@ -952,7 +946,7 @@ void MlvqMaterial::sample_alpha(SampleState* states, size_t count) const {
             mass -= s.mix.mass[c++];
         const double share = std::clamp(mass / s.mix.mass[c], 0.0, 1.0);
         s.component = c;
-        rows[k] = row_masses(s, s.mix.g.index[c]);
+        rows[k] = m_decoded->rows(s.mix.g.index[c]);
         target[k] = share * rows[k][n_alpha];
     }
     invert_rows(rows, int(count), n_alpha, target, x);
@@ -977,7 +971,7 @@ void MlvqMaterial::sample_beta(SampleState* states, size_t count) const {
         // rows': their precomputed integrals blended.
         const double tx = s.x - s.i0;
         const uint32_t m = s.mix.g.index[s.component];
-        const float* rows = row_masses(s, m);
+        const float* rows = m_decoded->rows(m);
         const double row_mass = (1 - tx) * rows[s.i0] + tx * rows[s.i0 + 1];
         draws[k] = {m_decoded->luminance_row(m, s.i0), float(1 - tx), float(tx), s.xi2 * row_mass};
     }
@@ -1055,22 +1049,17 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
             for (int c = 0; c < s.mix.g.count; ++c)
                 __builtin_prefetch(m_decoded->rows(s.mix.g.index[c]));
         }
-        // Four queries at a time, so that the first ones' prefetches have the others' work to
-        // arrive in.
+        for (size_t i = 0; i < n; ++i) sample_mixture(group[i]);
         for (size_t i = 0; i < n; i += kDraws) {
-            const size_t end = std::min<size_t>(i + kDraws, n);
-            for (size_t k = i; k < end; ++k) sample_mixture(group[k]);
-            sample_alpha(&group[i], end - i);
-            for (size_t k = i; k < end; ++k)
+            sample_alpha(&group[i], std::min<size_t>(kDraws, n - i));
+            for (size_t k = i; k < std::min<size_t>(i + kDraws, n); ++k)
                 prefetch_luminance_rows(*m_decoded, group[k].mix.g.index[group[k].component],
                                         group[k].i0);
         }
-        for (size_t i = 0; i < n; i += kDraws) {
-            const size_t end = std::min<size_t>(i + kDraws, n);
-            sample_beta(&group[i], end - i);
-            for (size_t k = i; k < end; ++k)
-                for (int c = 0; c < group[k].mix.g.count; ++c) group[k].mix.g.prefetch(c);
-        }
+        for (size_t i = 0; i < n; i += kDraws)
+            sample_beta(&group[i], std::min<size_t>(kDraws, n - i));
+        for (size_t i = 0; i < n; ++i)
+            for (int c = 0; c < group[i].mix.g.count; ++c) group[i].mix.g.prefetch(c);
         for (size_t i = 0; i < n; ++i) {
             sample_finish(group[i]);
             out[begin + i] = group[i].out;

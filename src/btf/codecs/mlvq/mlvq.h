@@ -158,7 +158,6 @@ class MlvqMaterial final : public Material {
     struct SampleState;
     void sample_begin(const SampleQuery& q, SampleState& s) const;
     void sample_mixture(SampleState& s) const;
-    const float* row_masses(const SampleState& s, uint32_t m) const;
     void sample_alpha(SampleState* states, size_t count) const;
     void sample_beta(SampleState* states, size_t count) const;
     void sample_finish(SampleState& s) const;
