@@ -7,7 +7,7 @@ JOBS      ?= $(shell nproc)
 BTF       := $(BUILD_DIR)/btf
 
 .PHONY: all bootstrap configure build test demo format format-check bench clean \
-        test-sanitize fuzz fuzz-corpus
+        test-sanitize fuzz fuzz-corpus python
 
 all: build
 
@@ -23,7 +23,13 @@ configure: bootstrap
 build: bootstrap $(BUILD_DIR)/build.ninja
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
-## The whole test suite: formatting, then every GoogleTest case through CTest.
+## The Python module alone, into build/<preset>/python (PYTHONPATH=build/release/python
+## /usr/bin/python3 -c "import btfkit"); `make build` builds it too. docs/python.md.
+python: bootstrap $(BUILD_DIR)/build.ninja
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target python
+
+## The whole test suite: formatting, then every GoogleTest case, the Python module's pytest suite
+## and the viewer's tests through CTest.
 test: build format-check
 	ctest --test-dir $(BUILD_DIR) -j $(JOBS) --output-on-failure --timeout 900
 

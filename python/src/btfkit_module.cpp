@@ -1,0 +1,318 @@
+// The btfkit Python module's native part (_btfkit): sources, synthesis, compression and
+// materials over NumPy arrays. python/btfkit/__init__.py re-exports it with the pure-Python
+// helpers; docs/python.md describes the API.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "btf/codecs/codec.h"
+#include "btf/core/material.h"
+#include "btf/io/open.h"
+#include "btf/io/package.h"
+#include "btf/synth/synth.h"
+#include "btf/util/error.h"
+#include "btf/util/parallel.h"
+
+namespace py = pybind11;
+
+namespace {
+
+using btf::BtfSource;
+using btf::Material;
+
+// Queries per task of a batch: large enough that a task's setup is noise, small enough that both
+// cores get work on a small batch.
+constexpr int64_t kChunk = 4096;
+
+// A C-contiguous float64 view of `array` with `columns` columns (any real dtype is converted);
+// ValueError naming `name` for another shape or a value that is not finite.
+py::array_t<double, py::array::c_style | py::array::forcecast> rows_of(const py::handle& array,
+                                                                       const char* name,
+                                                                       int64_t columns) {
+    auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+    if (!a) throw py::value_error(std::string(name) + ": expected an array of numbers");
+    if (a.ndim() != 2 || a.shape(1) != columns)
+        throw py::value_error(std::string(name) + ": expected shape (N, " +
+                              std::to_string(columns) + "), got " +
+                              std::string(py::str(py::make_tuple(a.request().shape))));
+    const double* p = a.data();
+    for (py::ssize_t i = 0; i < a.size(); ++i)
+        if (!std::isfinite(p[i]))
+            throw py::value_error(std::string(name) + ": row " + std::to_string(i / columns) +
+                                  " holds a value that is not finite");
+    return a;
+}
+
+void same_rows(int64_t n, const py::array& a, const char* name) {
+    if (a.shape(0) != n)
+        throw py::value_error(std::string(name) + ": " + std::to_string(a.shape(0)) +
+                              " rows, expected " + std::to_string(n));
+}
+
+btf::Vec3 vec3(const double* p) {
+    return {p[0], p[1], p[2]};
+}
+
+// Directions of a set as an (N, 3) array of unit vectors and an (N, 2) array of (θ, φ) degrees.
+py::array_t<double> vectors(const btf::DirectionSet& set) {
+    py::array_t<double> out({py::ssize_t(set.size()), py::ssize_t(3)});
+    auto o = out.mutable_unchecked<2>();
+    for (int i = 0; i < set.size(); ++i) {
+        const btf::Vec3 v = set[i].vector();
+        o(i, 0) = v.x, o(i, 1) = v.y, o(i, 2) = v.z;
+    }
+    return out;
+}
+py::array_t<double> degrees(const btf::DirectionSet& set) {
+    py::array_t<double> out({py::ssize_t(set.size()), py::ssize_t(2)});
+    auto o = out.mutable_unchecked<2>();
+    for (int i = 0; i < set.size(); ++i) o(i, 0) = set[i].theta_deg(), o(i, 1) = set[i].phi_deg();
+    return out;
+}
+
+// An image as a new float32 (H, W, C) array.
+py::array_t<float> to_array(const btf::Image& image) {
+    py::array_t<float> out(
+        {py::ssize_t(image.height()), py::ssize_t(image.width()), py::ssize_t(image.channels())});
+    std::copy(image.data(), image.data() + out.size(), out.mutable_data());
+    return out;
+}
+
+void check_index(int index, int count, const char* what) {
+    if (index < 0 || index >= count)
+        throw py::index_error(std::string(what) + " " + std::to_string(index) +
+                              " is out of range (0 to " + std::to_string(count - 1) + ")");
+}
+
+// Keyword arguments as codec parameters: their text as `btf compress -p key=value` takes it
+// (True/False as true/false), with '_' in a name read as '-' (power_iterations).
+btf::Params params_of(const py::kwargs& kwargs) {
+    btf::Params params;
+    for (const auto& [key, value] : kwargs) {
+        std::string name = py::str(key);
+        std::replace(name.begin(), name.end(), '_', '-');
+        std::string text = py::isinstance<py::bool_>(value)
+                               ? (value.cast<bool>() ? "true" : "false")
+                               : std::string(py::str(value));
+        params.set(name, text);
+    }
+    return params;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_btfkit, m) {
+    m.doc() = "btfkit's native module; import btfkit instead.";
+
+    // btf::Error → btfkit.Error (the same one-line message); btf::Cancelled → KeyboardInterrupt.
+    static py::exception<btf::Error> error(m, "Error");
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const btf::Cancelled&) {
+            PyErr_SetNone(PyExc_KeyboardInterrupt);
+        } catch (const btf::Error& e) {
+            error(e.what());
+        }
+    });
+
+    py::class_<BtfSource, std::shared_ptr<BtfSource>>(
+        m, "Source", R"(A BTF on disk or synthesized: images read one at a time.
+
+width, height: texels; views, lights: (N, 3) unit vectors in the sample's frame;
+view_degrees, light_degrees: (N, 2) arrays of (theta, phi) in degrees;
+image(view, light): float32 (height, width, 3) linear RGB.)")
+        .def_property_readonly("width", &BtfSource::width)
+        .def_property_readonly("height", &BtfSource::height)
+        .def_property_readonly("num_views", &BtfSource::num_views)
+        .def_property_readonly("num_lights", &BtfSource::num_lights)
+        .def_property_readonly("views",
+                               [](const BtfSource& s) { return vectors(s.sampling().views); })
+        .def_property_readonly("lights",
+                               [](const BtfSource& s) { return vectors(s.sampling().lights); })
+        .def_property_readonly("view_degrees",
+                               [](const BtfSource& s) { return degrees(s.sampling().views); })
+        .def_property_readonly("light_degrees",
+                               [](const BtfSource& s) { return degrees(s.sampling().lights); })
+        .def_property_readonly("format", [](const BtfSource& s) { return s.info().format; })
+        .def_property_readonly("hdr", [](const BtfSource& s) { return s.info().hdr; })
+        .def(
+            "image",
+            [](const BtfSource& s, int view, int light) {
+                check_index(view, s.num_views(), "view");
+                check_index(light, s.num_lights(), "light");
+                btf::Image image;
+                {
+                    py::gil_scoped_release release;
+                    s.read_image(view, light, image);
+                }
+                return to_array(image);
+            },
+            py::arg("view"), py::arg("light"),
+            "The image of one view and light: float32 (height, width, 3), linear RGB.");
+
+    m.def(
+        "open",
+        [](const std::filesystem::path& path) -> std::shared_ptr<BtfSource> {
+            py::gil_scoped_release release;
+            return btf::open_source(path);
+        },
+        py::arg("path"),
+        "Opens a BTF with the reader that recognizes it: Bonn UBO2003 (zip or folder), UBO2014 "
+        "(.btf), UTIA, or btfkit HDF5.");
+
+    m.def(
+        "synth",
+        [](const std::string& preset, int size, const std::string& sampling,
+           uint64_t seed) -> std::shared_ptr<BtfSource> {
+            if (size < 1) throw py::value_error("size: must be at least 1");
+            const btf::DirectionSet set = btf::DirectionSet::named(sampling);
+            return btf::synth::make(preset, size, btf::Sampling{set, set}, seed);
+        },
+        py::arg("preset"), py::arg("size"), py::arg("sampling") = "ubo81", py::arg("seed") = 1,
+        "A synthetic material (btf synth): preset name, size x size texels, the same direction "
+        "set (ubo81, dome151 or a file) for views and lights, and a seed.");
+
+    m.def("presets", &btf::synth::preset_names, "The names synth() accepts.");
+    m.def(
+        "codecs",
+        [] {
+            py::dict out;
+            for (const btf::Codec* c : btf::codecs()) {
+                py::dict params;
+                for (const btf::ParamInfo& p : c->params())
+                    params[py::str(p.name)] = py::make_tuple(p.default_value, p.help);
+                out[py::str(std::string(c->name()))] =
+                    py::make_tuple(std::string(c->description()), params);
+            }
+            return out;
+        },
+        "Every codec: name -> (description, {parameter: (default, help)}).");
+
+    m.def(
+        "_compress",
+        [](const std::shared_ptr<BtfSource>& source, const std::filesystem::path& out,
+           const std::string& codec, const py::kwargs& kwargs) {
+            const btf::Params params = params_of(kwargs);
+            py::gil_scoped_release release;
+            btf::Package package = btf::find_codec(codec).encode(*source, params);
+            btf::write_package(out, package);
+        },
+        py::arg("source"), py::arg("out"), py::arg("codec"));
+
+    py::class_<Material, std::shared_ptr<Material>>(
+        m, "Material", R"(A random-access BTF material (a package, or a UBO2014 file).
+
+eval(uv, wi, wo): (N, 2), (N, 3), (N, 3) -> (N, 3) float32, the filtered value;
+sample(uv, wo, xi): (N, 2), (N, 3), (N, 2) -> (wi (N, 3), pdf (N,), value (N, 3));
+albedo(uv, wo): (N, 2), (N, 3) -> (N, 3). Directions are in the sample's frame (z up) and need
+not be unit length; the batches run on every core with the GIL released.)")
+        .def_property_readonly("width", &Material::width)
+        .def_property_readonly("height", &Material::height)
+        .def(
+            "eval",
+            [](const Material& material, const py::object& uv_in, const py::object& wi_in,
+               const py::object& wo_in) {
+                const auto uv = rows_of(uv_in, "uv", 2), wi = rows_of(wi_in, "wi", 3),
+                           wo = rows_of(wo_in, "wo", 3);
+                const int64_t n = uv.shape(0);
+                same_rows(n, wi, "wi");
+                same_rows(n, wo, "wo");
+                py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
+                static_assert(sizeof(btf::Rgb) == 3 * sizeof(float));
+                btf::Rgb* values = reinterpret_cast<btf::Rgb*>(out.mutable_data());
+                const double *u = uv.data(), *i = wi.data(), *o = wo.data();
+                {
+                    py::gil_scoped_release release;
+                    btf::parallel_for(0, (n + kChunk - 1) / kChunk, [&](int64_t chunk) {
+                        const int64_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
+                        std::vector<btf::Query> queries(size_t(end - begin));
+                        for (int64_t k = begin; k < end; ++k)
+                            queries[size_t(k - begin)] = {
+                                {u[2 * k], u[2 * k + 1]}, vec3(i + 3 * k), vec3(o + 3 * k)};
+                        material.eval_batch(queries,
+                                            std::span(values + begin, size_t(end - begin)));
+                    });
+                }
+                return out;
+            },
+            py::arg("uv"), py::arg("wi"), py::arg("wo"),
+            "The filtered BTF value at each (uv, wi, wo): (N, 2), (N, 3), (N, 3) -> float32 (N, "
+            "3).")
+        .def(
+            "sample",
+            [](const Material& material, const py::object& uv_in, const py::object& wo_in,
+               const py::object& xi_in) {
+                const auto uv = rows_of(uv_in, "uv", 2), wo = rows_of(wo_in, "wo", 3),
+                           xi = rows_of(xi_in, "xi", 2);
+                const int64_t n = uv.shape(0);
+                same_rows(n, wo, "wo");
+                same_rows(n, xi, "xi");
+                py::array_t<double> wi({py::ssize_t(n), py::ssize_t(3)});
+                py::array_t<double> pdf(py::ssize_t{n});
+                py::array_t<float> value({py::ssize_t(n), py::ssize_t(3)});
+                double *w = wi.mutable_data(), *p = pdf.mutable_data();
+                float* v = value.mutable_data();
+                const double *u = uv.data(), *o = wo.data(), *x = xi.data();
+                {
+                    py::gil_scoped_release release;
+                    btf::parallel_for(0, (n + kChunk - 1) / kChunk, [&](int64_t chunk) {
+                        const int64_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
+                        std::vector<btf::SampleQuery> queries(size_t(end - begin));
+                        std::vector<btf::LightSample> drawn(queries.size());
+                        for (int64_t k = begin; k < end; ++k)
+                            queries[size_t(k - begin)] = {
+                                {u[2 * k], u[2 * k + 1]}, vec3(o + 3 * k), x[2 * k], x[2 * k + 1]};
+                        material.sample_batch(queries, drawn);
+                        for (int64_t k = begin; k < end; ++k) {
+                            const btf::LightSample& s = drawn[size_t(k - begin)];
+                            w[3 * k] = s.wi.x, w[3 * k + 1] = s.wi.y, w[3 * k + 2] = s.wi.z;
+                            p[k] = s.pdf;
+                            v[3 * k] = s.value.r, v[3 * k + 1] = s.value.g,
+                                  v[3 * k + 2] = s.value.b;
+                        }
+                    });
+                }
+                return py::make_tuple(wi, pdf, value);
+            },
+            py::arg("uv"), py::arg("wo"), py::arg("xi"),
+            "Light directions drawn for (uv, wo) from uniform numbers xi in [0, 1)^2: "
+            "(wi (N, 3), pdf (N,) per unit solid angle, value (N, 3) float32).")
+        .def(
+            "albedo",
+            [](const Material& material, const py::object& uv_in, const py::object& wo_in) {
+                const auto uv = rows_of(uv_in, "uv", 2), wo = rows_of(wo_in, "wo", 3);
+                const int64_t n = uv.shape(0);
+                same_rows(n, wo, "wo");
+                py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
+                float* v = out.mutable_data();
+                const double *u = uv.data(), *o = wo.data();
+                {
+                    py::gil_scoped_release release;
+                    btf::parallel_for(0, n, [&](int64_t k) {
+                        const btf::Rgb a =
+                            material.albedo({u[2 * k], u[2 * k + 1]}, vec3(o + 3 * k));
+                        v[3 * k] = a.r, v[3 * k + 1] = a.g, v[3 * k + 2] = a.b;
+                    });
+                }
+                return out;
+            },
+            py::arg("uv"), py::arg("wo"),
+            "Directional albedo (1/pi) * integral of value over the light hemisphere, per "
+            "channel.");
+
+    m.def(
+        "open_material",
+        [](const std::filesystem::path& path) -> std::shared_ptr<Material> {
+            py::gil_scoped_release release;
+            return btf::open_material(path);
+        },
+        py::arg("path"),
+        "Opens a btfkit package (any codec) or a UBO2014 .btf file as a material.");
+}
