@@ -11,13 +11,22 @@ Errors from btfkit raise btfkit.Error with the same one-line message as the btf 
 malformed arguments raise ValueError naming the argument. See docs/python.md.
 """
 
+import json as _json
 import os as _os
 
 from ._btfkit import Error, Material, Source, codecs, open, open_material, presets, synth
-from ._btfkit import _compress
+from ._btfkit import _compress, _open_input, _quality
 
 __all__ = ["Error", "Material", "Source", "codecs", "compress", "images", "open",
-           "open_material", "presets", "synth"]
+           "open_material", "presets", "quality", "synth"]
+
+
+def _source(value, name):
+    if isinstance(value, Source):
+        return value
+    if isinstance(value, (str, bytes, _os.PathLike)):
+        return _open_input(_os.fspath(value))
+    raise ValueError(f"{name}: expected a btfkit.Source or a path")
 
 
 def images(source):
@@ -41,3 +50,16 @@ def compress(source, out, codec="fmf", **params):
     if not isinstance(source, Source):
         raise ValueError("source: expected a btfkit.Source or a path")
     _compress(source, _os.fspath(out), codec, **params)
+
+
+def quality(reference, test, metrics=("rmse", "lab", "de2000", "ssim"), cos_weight=False,
+            peak=0.0):
+    """How far `test` is from `reference`: a dict as `btf quality --json` prints it.
+
+    Either may be a Source or a path; a package's path is measured through its codec's decoding.
+    metrics: names from rmse, lab, de2000, ssim, btf-cielab (a list or a comma-separated string).
+    """
+    if not isinstance(metrics, str):
+        metrics = ",".join(metrics)
+    return _json.loads(_quality(_source(reference, "reference"), _source(test, "test"), metrics,
+                                bool(cos_weight), float(peak)))

@@ -12,9 +12,11 @@
 #include <string>
 
 #include "btf/codecs/codec.h"
+#include "btf/codecs/material_source.h"
 #include "btf/core/material.h"
 #include "btf/io/open.h"
 #include "btf/io/package.h"
+#include "btf/quality/measure.h"
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
@@ -306,6 +308,33 @@ not be unit length; the batches run on every core with the GIL released.)")
             py::arg("uv"), py::arg("wo"),
             "Directional albedo (1/pi) * integral of value over the light hemisphere, per "
             "channel.");
+
+    m.def(
+        "_open_input",
+        [](const std::filesystem::path& path) -> std::shared_ptr<BtfSource> {
+            py::gil_scoped_release release;
+            if (btf::probe_package(path)) return btf::open_package_source(path);
+            return btf::open_source(path);
+        },
+        py::arg("path"));
+
+    m.def(
+        "_quality",
+        [](const std::shared_ptr<BtfSource>& reference, const std::shared_ptr<BtfSource>& test,
+           const std::string& metrics, bool cos_weight, double peak) {
+            btf::quality::QualityRequest request = btf::quality::QualityRequest::parse(metrics);
+            request.compare.cos_weight = cos_weight;
+            request.compare.peak = peak;
+            std::string json;
+            {
+                py::gil_scoped_release release;
+                json =
+                    btf::quality::to_json(btf::quality::measure(*reference, *test, request)).dump();
+            }
+            return json;
+        },
+        py::arg("reference"), py::arg("test"), py::arg("metrics"), py::arg("cos_weight"),
+        py::arg("peak"));
 
     m.def(
         "open_material",

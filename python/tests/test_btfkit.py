@@ -124,3 +124,17 @@ def test_sample_draws_by_its_pdf_and_reports_the_value(package):
     albedo = m.albedo(uv[:1], wo[:1])[0]
     mean, se = estimate.mean(axis=0), estimate.std(axis=0) / math.sqrt(n)
     assert (np.abs(mean - math.pi * albedo) < 5 * se + 1e-3).all(), (mean, math.pi * albedo, se)
+
+
+def test_quality_measures_what_btf_quality_measures(source, package):
+    same = bk.quality(source, source, metrics=["rmse", "de2000"])
+    assert same["rmse"] == 0 and same["psnr"] is None and same["de2000"]["max"] == 0
+    assert (same["width"], same["views"], same["images"]) == (8, 81, 81 * 81)
+    full = bk.quality(source, package, metrics="rmse,ssim")
+    assert 0 < full["rmse"] < 2e-3 and full["ssim"]["luminance"] > 0.999
+    assert "lab_mae" not in full
+    # The package's own path and its decoded material give the same numbers.
+    again = bk.quality(source, bk.open_material(package) and str(package), metrics="rmse")
+    assert again["rmse"] == full["rmse"]
+    with pytest.raises(bk.Error, match="unknown metric 'psnr'"):
+        bk.quality(source, source, metrics="psnr")

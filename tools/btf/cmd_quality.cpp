@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "btf/quality/btf_cielab.h"
+#include "btf/quality/measure.h"
 #include "btf/quality/metrics.h"
 #include "btf/util/error.h"
 #include "cli.h"
@@ -17,15 +18,8 @@ namespace btf::cli {
 
 namespace {
 
-constexpr const char* kMetricNames = "rmse, lab, de2000, ssim, btf-cielab";
-
 std::string number(double v) {
     return fmt::format("{:.6g}", v);
-}
-
-// +inf (identical inputs) has no JSON number: null.
-nlohmann::json json_number(double v) {
-    return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
 std::string condition_text(const quality::ViewingCondition& c) {
@@ -53,7 +47,7 @@ Command register_quality(CLI::App& app, GlobalOptions& global) {
                     "BTF or package to measure, of the same extent and sampling")
         ->required();
     cmd->add_option("--metrics", args->metrics,
-                    fmt::format("comma-separated measures, from: {}", kMetricNames));
+                    fmt::format("comma-separated measures, from: {}", quality::kMetricNames));
     cmd->add_flag("--json", args->json, "print JSON instead of a table");
     auto* cos_weight = cmd->add_flag(
         "--cos-weight", args->cos_weight,
@@ -71,99 +65,37 @@ Command register_quality(CLI::App& app, GlobalOptions& global) {
 
     return {cmd, [args, &global, cos_weight, peak, grid, search] {
                 // Arguments first: opening and comparing large BTFs takes long.
-                std::vector<std::string> rest;
-                quality::MetricSelection selection;
+                quality::QualityRequest request;
                 try {
-                    selection = quality::MetricSelection::parse(args->metrics, &rest);
+                    request = quality::QualityRequest::parse(args->metrics);
                 } catch (const Error& e) {
                     fail("--metrics: {}", e.what());
                 }
-                bool cielab = false;
-                for (const std::string& name : rest) {
-                    if (name != "btf-cielab")
-                        fail("--metrics: unknown metric '{}'; the metrics are {}", name,
-                             kMetricNames);
-                    cielab = true;
-                }
-                if ((grid->count() || search->count()) && !cielab)
+                const quality::MetricSelection& selection = request.compare.metrics;
+                if ((grid->count() || search->count()) && !request.btf_cielab)
                     fail("--grid and --search apply to btf-cielab: add it to --metrics");
                 if ((cos_weight->count() || peak->count()) && !selection.any())
                     fail(
                         "--cos-weight and --peak apply to rmse, lab, de2000 and ssim, which "
                         "--metrics does not name");
+                request.compare.cos_weight = args->cos_weight;
+                request.compare.peak = args->peak;
+                request.cielab.grid = args->grid;
+                request.cielab.search = args->search;
 
                 const auto reference = open_input(args->reference, {}, "");
                 const auto test = open_input(args->test, {}, "");
-                quality::check_comparable(*reference, *test);
                 Progress progress = make_progress(global);
-
-                std::optional<quality::Metrics> metrics;
-                if (selection.any()) {
-                    quality::CompareOptions options;
-                    options.metrics = selection;
-                    options.cos_weight = args->cos_weight;
-                    options.peak = args->peak;
-                    metrics = quality::compare(*reference, *test, options, progress);
-                }
-                std::optional<quality::BtfCielabResult> perceptual;
-                if (cielab) {
-                    quality::BtfCielabOptions options;
-                    options.grid = args->grid;
-                    options.search = args->search;
-                    perceptual = quality::btf_cielab(*reference, *test, options, progress);
-                }
+                const quality::QualityResult result =
+                    quality::measure(*reference, *test, request, progress);
+                const std::optional<quality::Metrics>& metrics = result.metrics;
+                const std::optional<quality::BtfCielabResult>& perceptual = result.perceptual;
 
                 const Sampling& s = reference->sampling();
                 if (args->json) {
-                    nlohmann::json j;
+                    nlohmann::json j = quality::to_json(result);
                     j["reference"] = args->reference;
                     j["test"] = args->test;
-                    j["width"] = reference->width();
-                    j["height"] = reference->height();
-                    j["views"] = s.num_views();
-                    j["lights"] = s.num_lights();
-                    j["images"] = s.num_images();
-                    if (metrics) {
-                        const quality::Metrics& m = *metrics;
-                        j["peak"] = m.peak;
-                        j["cos_weighted"] = m.cos_weighted;
-                        j["seconds"] = m.seconds;
-                        if (selection.rmse) {
-                            j["rmse"] = m.rmse;
-                            j["psnr"] = json_number(m.psnr);
-                        }
-                        if (selection.lab)
-                            j["lab_mae"] = {
-                                {"L", m.lab_mae[0]}, {"a", m.lab_mae[1]}, {"b", m.lab_mae[2]}};
-                        if (selection.de2000)
-                            j["de2000"] = {{"mean", m.de2000_mean},
-                                           {"p95", m.de2000_p95},
-                                           {"max", m.de2000_max},
-                                           {"p95_bin_width", quality::kDe2000BinWidth}};
-                        if (selection.ssim)
-                            j["ssim"] = {{"luminance", m.ssim_luminance},
-                                         {"Y", m.ssim_ycrcb[0]},
-                                         {"Cr", m.ssim_ycrcb[1]},
-                                         {"Cb", m.ssim_ycrcb[2]}};
-                    }
-                    if (perceptual) {
-                        const quality::BtfCielabValue& h = perceptual->headline();
-                        nlohmann::json conditions = nlohmann::json::array();
-                        for (const quality::BtfCielabValue& v : perceptual->values)
-                            conditions.push_back({{"angular_speed", v.condition.angular_speed},
-                                                  {"resolution", v.condition.resolution},
-                                                  {"mean", v.mean},
-                                                  {"stddev", v.stddev},
-                                                  {"rms", v.rms}});
-                        j["btf_cielab"] = {{"mean", h.mean},
-                                           {"stddev", h.stddev},
-                                           {"rms", h.rms},
-                                           {"angular_speed", h.condition.angular_speed},
-                                           {"resolution", h.condition.resolution},
-                                           {"searched", perceptual->searched},
-                                           {"conditions", conditions},
-                                           {"seconds", perceptual->seconds}};
-                    }
                     std::printf("%s\n", j.dump(2).c_str());
                     return;
                 }
