@@ -53,8 +53,8 @@ class DecodedBooks {
     /// row a (β neighbours are adjacent: the β axis is clamped, not periodic) and their weights
     /// w[a][q].
     struct Corners {
-        int off[2];
-        float w[2][2];
+        int off[2] = {0, 0};
+        float w[2][2] = {};
         Corners() = default;
         Corners(const MlvqGrid& g, const MlvqWeights& lw);
     };

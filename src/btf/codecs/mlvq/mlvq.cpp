@@ -695,6 +695,7 @@ double invert_segment(int i, float low, float a, float b, double target) {
     return i + double(x > 0 ? std::min(x, 1.0f) : 0.0f);
 }
 
+#ifdef __AVX512F__
 // invert_segment() for the kDraws draws of the arrays, in the lanes of vectors where the CPU
 // has them (the same operations lane by lane).
 void invert_segments(const int* i, const float* low, const float* a, const float* b,
@@ -706,7 +707,8 @@ void invert_segments(const int* i, const float* low, const float* a, const float
     const __m128 segment = _mm_mul_ps(_mm_set1_ps(0.5f), _mm_add_ps(va, vb));
     __m128 r =
         _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_loadu_pd(target), _mm256_cvtps_pd(_mm_loadu_ps(low))));
-    r = _mm_min_ps(_mm_max_ps(r, zero), segment);  // maxps gives its second operand for a NaN
+    // As std::min(max(r, 0), segment): minps and maxps give their second operand for a NaN.
+    r = _mm_min_ps(segment, _mm_max_ps(r, zero));
     const __m128 twice_slope = _mm_add_ps(_mm_sub_ps(vb, va), _mm_sub_ps(vb, va));
     const __m128 discriminant = _mm_max_ps(_mm_fmadd_ps(twice_slope, r, _mm_mul_ps(va, va)), zero);
     const __m128 denominator = _mm_add_ps(va, _mm_sqrt_ps(discriminant));
@@ -721,6 +723,7 @@ void invert_segments(const int* i, const float* low, const float* a, const float
     for (int k = 0; k < kDraws; ++k) out[k] = invert_segment(i[k], low[k], a[k], b[k], target[k]);
 #endif
 }
+#endif
 
 // The segment of a density linear between samples v[0 … n−1] (unit spacing) where the mass
 // reaches `target` (in [0, Σ trapezoids)), and the mass below it: the number of segments whose
@@ -992,6 +995,14 @@ void MlvqMaterial::sample_beta(SampleState* states, size_t count) const {
         const int j0 = std::min(int(s.y), g.n_beta - 2);
         w.alpha = {{s.i0, s.i0 + 1}, {float(1 - tx), float(tx)}};
         w.beta = {{j0, j0 + 1}, {float(1 - (s.y - j0)), float(s.y - j0)}};
+        if (!(s.y > 0 && s.y < g.n_beta - 1)) {
+            // A pole of the onion frame (u = ±1, a draw at ξ2 = 0 or 1): the direction does not
+            // depend on α there, and eval() and pdf() of it look α up as 0. The corners of the
+            // direction itself, so that they agree.
+            MlvqWeights at;
+            lookup_lights(g, &s.out.wi, &s.mix.view, 1, &at);
+            w.alpha = at.alpha, w.beta = at.beta;
+        }
         s.mix.g.corners = DecodedBooks::Corners(g, w);
     }
 }
@@ -1053,8 +1064,9 @@ void MlvqMaterial::sample_batch(std::span<const SampleQuery> queries,
         for (size_t i = 0; i < n; i += kDraws) {
             sample_alpha(&group[i], std::min<size_t>(kDraws, n - i));
             for (size_t k = i; k < std::min<size_t>(i + kDraws, n); ++k)
-                prefetch_luminance_rows(*m_decoded, group[k].mix.g.index[group[k].component],
-                                        group[k].i0);
+                if (group[k].mix.total > 0)
+                    prefetch_luminance_rows(*m_decoded, group[k].mix.g.index[group[k].component],
+                                            group[k].i0);
         }
         for (size_t i = 0; i < n; i += kDraws)
             sample_beta(&group[i], std::min<size_t>(kDraws, n - i));
@@ -1388,7 +1400,8 @@ void MlvqMaterial::sample_stochastic_batch(std::span<const StochasticSampleQuery
                 for (size_t i = 0; i < count; ++i) sample_mixture(s[i]);
                 sample_alpha(s, count);
                 sample_beta(s, count);
-                for (size_t i = 0; i < count; ++i) s[i].mix.g.prefetch(0);
+                for (size_t i = 0; i < count; ++i)
+                    if (s[i].mix.total > 0) s[i].mix.g.prefetch(0);
                 break;
             default:
                 for (size_t i = 0; i < count; ++i) {

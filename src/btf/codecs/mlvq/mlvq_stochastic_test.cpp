@@ -166,8 +166,12 @@ void expect_sampling_follows_its_pdf(const Material& material,
                                             [&](const Vec3& wi) { return sp.pdf(wi); }, options);
             EXPECT_TRUE(r.passed(significance)) << u << ": " << r.describe();
             EXPECT_NEAR(r.pdf_integral, 1.0, 0.01) << u;
-            for (const double xi : {0.05, 0.37, 0.81}) {
-                const LightSample ls = sp.sample(xi, 1 - xi);
+            // ξ2 = 0 and the largest ξ2 below 1 draw at the poles of the onion frame (u = ±1),
+            // where the direction does not depend on α.
+            for (const auto& [xi1, xi2] :
+                 {std::pair{0.05, 0.95}, std::pair{0.37, 0.63}, std::pair{0.81, 0.19},
+                  std::pair{0.3, 0.0}, std::pair{0.6, std::nextafter(1.0, 0.0)}}) {
+                const LightSample ls = sp.sample(xi1, xi2);
                 ASSERT_GT(ls.pdf, 0);
                 // The drawn (α, u) against those that the direction gives back: rounding apart.
                 EXPECT_NEAR(ls.pdf, sp.pdf(ls.wi), 1e-5 * ls.pdf);

@@ -380,6 +380,10 @@ TEST(MlvqDecoded, TilesHoldEveryWindowInOneLine) {
             // The record holds the halves, padded to whole lines.
             EXPECT_EQ(d.record_floats() % 16, 0u);
             EXPECT_GE(d.record_floats() * 4, size_t(g.n_alpha + 1) * 4 + 2 * g.n_alpha * g.n_beta);
+            // and the window of a load from the last row's start.
+            EXPECT_GE(d.record_floats() * 4, size_t(g.n_alpha + 1) * 4 +
+                                                 2 * (g.n_alpha - 1) * g.n_beta +
+                                                 DecodedBooks::kRowWindow);
         }
         // Each decoded value equals the code-book chain (checked above for the default grid).
         for (int i = 0; i < g.n_alpha; ++i)
@@ -413,8 +417,11 @@ TEST(MlvqSampling, FollowsItsPdfWhichIntegratesToOne) {
             [&](const Vec3& wi) { return material->pdf(c.uv, c.wo, wi); }, options);
         EXPECT_TRUE(r.passed(1e-3)) << r.describe();
         EXPECT_NEAR(r.pdf_integral, 1.0, 0.01);
-        for (const double xi : {0.05, 0.37, 0.81}) {
-            const LightSample ls = material->sample(c.uv, c.wo, xi, 1 - xi);
+        // The last two draw at the poles of the onion frame (u = ±1, ξ2 = 0 and below 1).
+        for (const auto& [xi1, xi2] :
+             {std::pair{0.05, 0.95}, std::pair{0.37, 0.63}, std::pair{0.81, 0.19},
+              std::pair{0.3, 0.0}, std::pair{0.6, std::nextafter(1.0, 0.0)}}) {
+            const LightSample ls = material->sample(c.uv, c.wo, xi1, xi2);
             EXPECT_GT(ls.pdf, 0);
             EXPECT_NEAR(ls.pdf, material->pdf(c.uv, c.wo, ls.wi), 1e-5 * ls.pdf);
             const Rgb v = material->eval(c.uv, ls.wi, c.wo);
