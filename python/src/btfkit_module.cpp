@@ -57,8 +57,34 @@ void same_rows(int64_t n, const py::array& a, const char* name) {
                               " rows, expected " + std::to_string(n));
 }
 
+// The arrays of one batch call: each checked by rows_of(), all with the first one's rows.
+struct BatchArg {
+    const py::object& value;
+    const char* name;
+    int64_t columns;
+};
+std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> batch_of(
+    std::initializer_list<BatchArg> args) {
+    std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> out;
+    for (const BatchArg& a : args) {
+        out.push_back(rows_of(a.value, a.name, a.columns));
+        same_rows(out.front().shape(0), out.back(), a.name);
+    }
+    return out;
+}
+
 btf::Vec3 vec3(const double* p) {
     return {p[0], p[1], p[2]};
+}
+
+// Runs batch(begin, end) over [0, n) in chunks of kChunk on every core, with the GIL released.
+template <typename Batch>
+void in_chunks(int64_t n, const Batch& batch) {
+    py::gil_scoped_release release;
+    btf::parallel_for(0, (n + kChunk - 1) / kChunk, [&](int64_t chunk) {
+        const int64_t begin = chunk * kChunk;
+        batch(begin, std::min(n, begin + kChunk));
+    });
 }
 
 // Directions of a set as an (N, 3) array of unit vectors and an (N, 2) array of (θ, φ) degrees.
@@ -221,27 +247,19 @@ not be unit length; the batches run on every core with the GIL released.)")
             "eval",
             [](const Material& material, const py::object& uv_in, const py::object& wi_in,
                const py::object& wo_in) {
-                const auto uv = rows_of(uv_in, "uv", 2), wi = rows_of(wi_in, "wi", 3),
-                           wo = rows_of(wo_in, "wo", 3);
-                const int64_t n = uv.shape(0);
-                same_rows(n, wi, "wi");
-                same_rows(n, wo, "wo");
+                const auto a = batch_of({{uv_in, "uv", 2}, {wi_in, "wi", 3}, {wo_in, "wo", 3}});
+                const int64_t n = a[0].shape(0);
                 py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
                 static_assert(sizeof(btf::Rgb) == 3 * sizeof(float));
                 btf::Rgb* values = reinterpret_cast<btf::Rgb*>(out.mutable_data());
-                const double *u = uv.data(), *i = wi.data(), *o = wo.data();
-                {
-                    py::gil_scoped_release release;
-                    btf::parallel_for(0, (n + kChunk - 1) / kChunk, [&](int64_t chunk) {
-                        const int64_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
-                        std::vector<btf::Query> queries(size_t(end - begin));
-                        for (int64_t k = begin; k < end; ++k)
-                            queries[size_t(k - begin)] = {
-                                {u[2 * k], u[2 * k + 1]}, vec3(i + 3 * k), vec3(o + 3 * k)};
-                        material.eval_batch(queries,
-                                            std::span(values + begin, size_t(end - begin)));
-                    });
-                }
+                const double *u = a[0].data(), *i = a[1].data(), *o = a[2].data();
+                in_chunks(n, [&](int64_t begin, int64_t end) {
+                    std::vector<btf::Query> queries(size_t(end - begin));
+                    for (int64_t k = begin; k < end; ++k)
+                        queries[size_t(k - begin)] = {
+                            {u[2 * k], u[2 * k + 1]}, vec3(i + 3 * k), vec3(o + 3 * k)};
+                    material.eval_batch(queries, std::span(values + begin, size_t(end - begin)));
+                });
                 return out;
             },
             py::arg("uv"), py::arg("wi"), py::arg("wo"),
@@ -251,36 +269,28 @@ not be unit length; the batches run on every core with the GIL released.)")
             "sample",
             [](const Material& material, const py::object& uv_in, const py::object& wo_in,
                const py::object& xi_in) {
-                const auto uv = rows_of(uv_in, "uv", 2), wo = rows_of(wo_in, "wo", 3),
-                           xi = rows_of(xi_in, "xi", 2);
-                const int64_t n = uv.shape(0);
-                same_rows(n, wo, "wo");
-                same_rows(n, xi, "xi");
+                const auto a = batch_of({{uv_in, "uv", 2}, {wo_in, "wo", 3}, {xi_in, "xi", 2}});
+                const int64_t n = a[0].shape(0);
                 py::array_t<double> wi({py::ssize_t(n), py::ssize_t(3)});
                 py::array_t<double> pdf(py::ssize_t{n});
                 py::array_t<float> value({py::ssize_t(n), py::ssize_t(3)});
                 double *w = wi.mutable_data(), *p = pdf.mutable_data();
                 float* v = value.mutable_data();
-                const double *u = uv.data(), *o = wo.data(), *x = xi.data();
-                {
-                    py::gil_scoped_release release;
-                    btf::parallel_for(0, (n + kChunk - 1) / kChunk, [&](int64_t chunk) {
-                        const int64_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
-                        std::vector<btf::SampleQuery> queries(size_t(end - begin));
-                        std::vector<btf::LightSample> drawn(queries.size());
-                        for (int64_t k = begin; k < end; ++k)
-                            queries[size_t(k - begin)] = {
-                                {u[2 * k], u[2 * k + 1]}, vec3(o + 3 * k), x[2 * k], x[2 * k + 1]};
-                        material.sample_batch(queries, drawn);
-                        for (int64_t k = begin; k < end; ++k) {
-                            const btf::LightSample& s = drawn[size_t(k - begin)];
-                            w[3 * k] = s.wi.x, w[3 * k + 1] = s.wi.y, w[3 * k + 2] = s.wi.z;
-                            p[k] = s.pdf;
-                            v[3 * k] = s.value.r, v[3 * k + 1] = s.value.g,
-                                  v[3 * k + 2] = s.value.b;
-                        }
-                    });
-                }
+                const double *u = a[0].data(), *o = a[1].data(), *x = a[2].data();
+                in_chunks(n, [&](int64_t begin, int64_t end) {
+                    std::vector<btf::SampleQuery> queries(size_t(end - begin));
+                    std::vector<btf::LightSample> drawn(queries.size());
+                    for (int64_t k = begin; k < end; ++k)
+                        queries[size_t(k - begin)] = {
+                            {u[2 * k], u[2 * k + 1]}, vec3(o + 3 * k), x[2 * k], x[2 * k + 1]};
+                    material.sample_batch(queries, drawn);
+                    for (int64_t k = begin; k < end; ++k) {
+                        const btf::LightSample& s = drawn[size_t(k - begin)];
+                        w[3 * k] = s.wi.x, w[3 * k + 1] = s.wi.y, w[3 * k + 2] = s.wi.z;
+                        p[k] = s.pdf;
+                        v[3 * k] = s.value.r, v[3 * k + 1] = s.value.g, v[3 * k + 2] = s.value.b;
+                    }
+                });
                 return py::make_tuple(wi, pdf, value);
             },
             py::arg("uv"), py::arg("wo"), py::arg("xi"),
@@ -289,12 +299,11 @@ not be unit length; the batches run on every core with the GIL released.)")
         .def(
             "albedo",
             [](const Material& material, const py::object& uv_in, const py::object& wo_in) {
-                const auto uv = rows_of(uv_in, "uv", 2), wo = rows_of(wo_in, "wo", 3);
-                const int64_t n = uv.shape(0);
-                same_rows(n, wo, "wo");
+                const auto a = batch_of({{uv_in, "uv", 2}, {wo_in, "wo", 3}});
+                const int64_t n = a[0].shape(0);
                 py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
                 float* v = out.mutable_data();
-                const double *u = uv.data(), *o = wo.data();
+                const double *u = a[0].data(), *o = a[1].data();
                 {
                     py::gil_scoped_release release;
                     btf::parallel_for(0, n, [&](int64_t k) {
