@@ -297,6 +297,46 @@ not be unit length; the batches run on every core with the GIL released.)")
             "Light directions drawn for (uv, wo) from uniform numbers xi in [0, 1)^2: "
             "(wi (N, 3), pdf (N,) per unit solid angle, value (N, 3) float32).")
         .def(
+            "eval_sample",
+            [](const Material& material, const py::object& indices_in) {
+                auto a = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(
+                    indices_in);
+                if (!a || a.ndim() != 2 || a.shape(1) != 4)
+                    throw py::value_error("indices: expected an integer array of shape (N, 4)");
+                const int64_t n = a.shape(0);
+                const int64_t limit[4] = {material.width(), material.height(),
+                                          material.sampling().num_views(),
+                                          material.sampling().num_lights()};
+                const char* names[4] = {"x", "y", "view", "light"};
+                std::vector<btf::SampleIndex> indices(static_cast<size_t>(n));
+                const int64_t* p = a.data();
+                for (int64_t k = 0; k < n; ++k) {
+                    for (int c = 0; c < 4; ++c)
+                        if (p[4 * k + c] < 0 || p[4 * k + c] >= limit[c])
+                            throw py::value_error("indices: row " + std::to_string(k) + ": " +
+                                                  names[c] + " " + std::to_string(p[4 * k + c]) +
+                                                  " is out of range (0 to " +
+                                                  std::to_string(limit[c] - 1) + ")");
+                    indices[size_t(k)] = {int(p[4 * k]), int(p[4 * k + 1]), int(p[4 * k + 2]),
+                                          int(p[4 * k + 3])};
+                }
+                py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
+                btf::Rgb* values = reinterpret_cast<btf::Rgb*>(out.mutable_data());
+                in_chunks(n, [&](int64_t begin, int64_t end) {
+                    material.eval_sample_batch(
+                        std::span(indices.data() + begin, size_t(end - begin)),
+                        std::span(values + begin, size_t(end - begin)));
+                });
+                return out;
+            },
+            py::arg("indices"),
+            "Values at exact samples, without interpolation: rows (x, y, view, light) of the "
+            "material's texels and direction sets -> float32 (N, 3).")
+        .def_property_readonly("views",
+                               [](const Material& m) { return vectors(m.sampling().views); })
+        .def_property_readonly("lights",
+                               [](const Material& m) { return vectors(m.sampling().lights); })
+        .def(
             "albedo",
             [](const Material& material, const py::object& uv_in, const py::object& wo_in) {
                 const auto a = batch_of({{uv_in, "uv", 2}, {wo_in, "wo", 3}});

@@ -138,3 +138,16 @@ def test_quality_measures_what_btf_quality_measures(source, package):
     assert again["rmse"] == full["rmse"]
     with pytest.raises(bk.Error, match="unknown metric 'psnr'"):
         bk.quality(source, source, metrics="psnr")
+
+
+def test_eval_sample_reads_exact_samples(source, package):
+    m = bk.open_material(package)
+    np.testing.assert_allclose(m.views, source.views, atol=1e-12)
+    rng = np.random.default_rng(9)
+    idx = np.stack([rng.integers(0, 8, 100), rng.integers(0, 8, 100),
+                    rng.integers(0, 81, 100), rng.integers(0, 81, 100)], axis=1)
+    got = m.eval_sample(idx)
+    expected = np.array([source.image(int(v), int(l))[y, x] for x, y, v, l in idx])
+    np.testing.assert_allclose(got, expected, rtol=2e-2, atol=2e-3)
+    with pytest.raises(ValueError, match="row 1: view 81 is out of range"):
+        m.eval_sample([[0, 0, 0, 0], [0, 0, 81, 0]])
