@@ -1,9 +1,11 @@
 #include "fuzz/support/fuzz.h"
 
 #include <unistd.h>
+#include <cmath>
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -87,10 +89,20 @@ void exercise(const Material& material) {
                                                  {kPositions[1], kDirections[2], 0.6, 0.9, 0.1},
                                                  {kPositions[2], Vec3{0, 0, 0}, 0.4, 0.5, 0.5},
                                                  {kPositions[3], kDirections[3], 0.8, 0.1, 0.9},
-                                                 {kPositions[1], kDirections[0], 0.0, 0.6, 0.2}};
+                                                 {kPositions[1], kDirections[0], 0.0, 0.6, 0.0}};
         LightSample drawn[5];
         material.sample_stochastic_batch(samples, drawn);
         for (const LightSample& d : drawn) consume(d.value);
+        // The deterministic batch, with draws at ξ2 = 0 and just below 1 (mlvq: the poles of its
+        // light frame, which take the drawn direction's own corners).
+        const SampleQuery batch[] = {{kPositions[0], kDirections[1], 0.2, 0.0},
+                                     {kPositions[1], kDirections[2], 0.6, 0.4},
+                                     {kPositions[2], Vec3{0, 0, 0}, 0.4, 0.5},
+                                     {kPositions[3], kDirections[3], 0.8, std::nextafter(1.0, 0.0)},
+                                     {kPositions[1], kDirections[0], 0.0, 0.2}};
+        LightSample batch_out[5];
+        material.sample_batch(batch, batch_out);
+        for (const LightSample& d : batch_out) consume(d.value);
     }
 }
 
