@@ -1,7 +1,6 @@
 #include "fuzz/support/fuzz.h"
 
 #include <unistd.h>
-#include <cmath>
 
 #include <algorithm>
 #include <cctype>
