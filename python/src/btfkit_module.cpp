@@ -362,8 +362,7 @@ not be unit length; the batches run on every core with the GIL released.)")
         "_open_input",
         [](const std::filesystem::path& path) -> std::shared_ptr<BtfSource> {
             py::gil_scoped_release release;
-            if (btf::probe_package(path)) return btf::open_package_source(path);
-            return btf::open_source(path);
+            return btf::open_package_or_source(path);
         },
         py::arg("path"));
 

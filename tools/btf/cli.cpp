@@ -173,12 +173,9 @@ std::unique_ptr<Material> open_material_file(const std::string& path) {
 
 std::unique_ptr<BtfSource> open_input(const std::string& path, const OpenOptions& options,
                                       const std::string& views_text) {
-    if (probe_package(path)) {
-        if (!views_text.empty() || options.encoding != Encoding::kLinear)
-            fail("{}: --views and --raw do not apply to a btfkit package", path);
-        return open_package_source(path);
-    }
-    return open_source(path, finish_open_options(options, views_text));
+    if (probe_package(path) && (!views_text.empty() || options.encoding != Encoding::kLinear))
+        fail("{}: --views and --raw do not apply to a btfkit package", path);
+    return open_package_or_source(path, finish_open_options(options, views_text));
 }
 
 std::string lower_extension(const std::string& path) {

@@ -31,6 +31,12 @@ void MaterialSource::read_image(int view, int light, Image& out) const {
         for (int x = 0; x < w; ++x) out.set_rgb(x, y, m_material->eval_sample(x, y, view, light));
 }
 
+std::unique_ptr<BtfSource> open_package_or_source(const std::filesystem::path& path,
+                                                  const OpenOptions& options) {
+    if (probe_package(path)) return open_package_source(path);
+    return open_source(path, options);
+}
+
 std::unique_ptr<MaterialSource> open_package_source(const std::filesystem::path& path) {
     const Package package = read_package(path);
     std::shared_ptr<const Material> material;

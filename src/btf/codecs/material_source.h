@@ -8,6 +8,7 @@
 #include <string>
 
 #include "btf/core/material.h"
+#include "btf/io/open.h"
 #include "btf/io/source.h"
 #include "btf/util/progress.h"
 
@@ -40,6 +41,11 @@ class MaterialSource final : public BtfSource {
 /// Opens a btfkit package file (or a clean prefix of one) with the codec its header names.
 /// info().hdr is taken from the header's "hdr" field when the codec stores one.
 std::unique_ptr<MaterialSource> open_package_source(const std::filesystem::path& path);
+
+/// Any input a measurement takes: a btfkit package decoded through its codec
+/// (open_package_source(), `options` not applying), or a BTF that a reader opens.
+std::unique_ptr<BtfSource> open_package_or_source(const std::filesystem::path& path,
+                                                  const OpenOptions& options = {});
 
 /// Root-mean-square difference, over every texel, view, light and RGB channel (linear values),
 /// between `reference` and `material` evaluated at the reference's sample indices. Reads the
