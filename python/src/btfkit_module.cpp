@@ -239,6 +239,7 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
 
 eval(uv, wi, wo): (N, 2), (N, 3), (N, 3) -> (N, 3) float32, the filtered value;
 sample(uv, wo, xi): (N, 2), (N, 3), (N, 2) -> (wi (N, 3), pdf (N,), value (N, 3));
+pdf(uv, wo, wi): (N, 2), (N, 3), (N, 3) -> (N,), the density sample() draws wi with;
 albedo(uv, wo): (N, 2), (N, 3) -> (N, 3). Directions are in the sample's frame (z up) and need
 not be unit length; the batches run on every core with the GIL released.)")
         .def_property_readonly("width", &Material::width)
@@ -296,6 +297,25 @@ not be unit length; the batches run on every core with the GIL released.)")
             py::arg("uv"), py::arg("wo"), py::arg("xi"),
             "Light directions drawn for (uv, wo) from uniform numbers xi in [0, 1)^2: "
             "(wi (N, 3), pdf (N,) per unit solid angle, value (N, 3) float32).")
+        .def(
+            "pdf",
+            [](const Material& material, const py::object& uv_in, const py::object& wo_in,
+               const py::object& wi_in) {
+                const auto a = batch_of({{uv_in, "uv", 2}, {wo_in, "wo", 3}, {wi_in, "wi", 3}});
+                const int64_t n = a[0].shape(0);
+                py::array_t<double> out(py::ssize_t{n});
+                double* p = out.mutable_data();
+                const double *u = a[0].data(), *o = a[1].data(), *i = a[2].data();
+                in_chunks(n, [&](int64_t begin, int64_t end) {
+                    for (int64_t k = begin; k < end; ++k)
+                        p[k] = material.pdf({u[2 * k], u[2 * k + 1]}, vec3(o + 3 * k),
+                                            vec3(i + 3 * k));
+                });
+                return out;
+            },
+            py::arg("uv"), py::arg("wo"), py::arg("wi"),
+            "The density per unit solid angle with which sample(uv, wo, .) draws wi: (N, 2), "
+            "(N, 3), (N, 3) -> float64 (N,).")
         .def(
             "eval_sample",
             [](const Material& material, const py::object& indices_in) {

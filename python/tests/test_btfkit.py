@@ -119,6 +119,8 @@ def test_sample_draws_by_its_pdf_and_reports_the_value(package):
     np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-9)
     assert (wi[:, 2] >= 0).all() and (pdf > 0).all()
     np.testing.assert_allclose(value, m.eval(uv, wi, wo), rtol=1e-4, atol=1e-6)
+    # pdf() gives the density each drawn direction was drawn with.
+    np.testing.assert_allclose(m.pdf(uv, wo, wi), pdf, rtol=1e-5)
     # E[value / pdf] = π · albedo per channel: the estimate from these draws (a fixed seed: the
     # same numbers every run, no timing involved) lies within 5 of its standard errors of it.
     estimate = value / pdf[:, None]
