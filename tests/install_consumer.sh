@@ -1,0 +1,140 @@
+#!/usr/bin/env bash
+# CTest's Install.consumer and Install.python (cmake/install.cmake): installs this build into a
+# fresh temporary prefix and uses it there as a user would.
+#
+#   consumer  `cmake --install`: the files (public headers only, nothing naming this tree), the
+#             installed `btf`, btf/btf.h compiled on its own, examples/cpp built with CMake
+#             (find_package) and with pkg-config, both run, their output checked and compared
+#   python    `cmake --install --component python`: only the module, imported from the prefix
+#
+# Usage: install_consumer.sh consumer|python BUILD_DIR SOURCE_DIR
+# Environment (CTest sets it): CMAKE, CXX, NINJA, PKG_CONFIG, LIBDIR, INCLUDEDIR, BINDIR; for
+# python also PYTHON and PYTHON_DIR (the module's folder relative to the prefix).
+# Nothing is written outside the temporary folder but CMake's install_manifest*.txt in BUILD_DIR.
+set -euo pipefail
+
+mode=$1 build=$2 source=$3
+work=$(mktemp -d "${TMPDIR:-/tmp}/btfkit-install.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+prefix=$work/prefix
+
+fail() {
+    echo "install_consumer.sh: $*" >&2
+    exit 1
+}
+
+# Runs a command with its output in a log that is shown only when it fails.
+quiet() {
+    local log=$work/step.log
+    if ! "$@" >"$log" 2>&1; then
+        cat "$log" >&2
+        fail "failed: $*"
+    fi
+}
+
+# The output of examples/cpp (file $1): what it must say and values in their ranges. The numbers
+# are the example's own (woven_fabric, 32×32 texels, seed 1, fmf with 8 components).
+check_example_output() {
+    local out=$1
+    grep -qx 'source: synthetic, 32x32 texels, 81 views x 81 lights' "$out" ||
+        fail "example: the source line is wrong or missing"
+    awk '
+        function bad(what) { print "example: " what ": " $0 > "/dev/stderr"; failed = 1 }
+        /^package: / { packages++; if (!($3 + 0 > 10000 && $6 + 0 > 4)) bad("package size or ratio") }
+        /^eval / { evals++
+                   for (i = 12; i <= 14; i++) if (!($i > 0.01 && $i < 2)) bad("eval value")
+                   if (evals > 1 && !($12 < last)) bad("red not falling as the light goes down")
+                   last = $12 }
+        /^sample: / { samples++; gsub(/[(),]/, "")
+                      if (!($3 >= 0 && $3 <= 90 && $6 > 0 && $6 == $8)) bad("sample or its pdf") }
+        /^albedo: / { albedos++; for (i = 3; i <= 5; i++) if (!($i > 0.01 && $i < 1)) bad("albedo") }
+        /^quality: / { qualities++; gsub(/,/, "")
+                       if (!($3 > 0 && $3 < 0.05 && $5 > 25 && $9 < 5)) bad("quality") }
+        END { if (packages != 1 || evals != 3 || samples != 1 || albedos != 1 || qualities != 1) {
+                  print "example: lines missing" > "/dev/stderr"; failed = 1 }
+              exit failed }' "$out" || fail "the example's output is wrong"
+}
+
+install_consumer() {
+    quiet "$CMAKE" --install "$build" --prefix "$prefix"
+
+    # The files a user needs, and no internal header.
+    for file in "$BINDIR/btf" "$LIBDIR/btfkit/libbtfkit_images.so" "$INCLUDEDIR/btf/btf.h" \
+        "$INCLUDEDIR/btf/codecs/codec.h" "$INCLUDEDIR/btf/render/scene_file.h" \
+        "$LIBDIR/cmake/btfkit/btfkitConfig.cmake" "$LIBDIR/cmake/btfkit/btfkitConfigVersion.cmake" \
+        "$LIBDIR/pkgconfig/btfkit.pc"; do
+        [[ -f $prefix/$file ]] || fail "not installed: $file"
+    done
+    compgen -G "$prefix/$LIBDIR/libbtfkit.*" >/dev/null || fail "libbtfkit not installed"
+    for internal in btf/codecs/fmf/fmf.h btf/codecs/factor/model.h btf/stream/server.h \
+        btf/testing/support.h btf/core/image_module.h; do
+        [[ ! -e $prefix/$INCLUDEDIR/$internal ]] || fail "internal header installed: $internal"
+    done
+    ! find "$prefix/$INCLUDEDIR" -type f ! -name '*.h' | grep . || fail "not a header (above)"
+    echo "installed $(find "$prefix/$INCLUDEDIR" -name '*.h' | wc -l) headers"
+    # The package files name the prefix relative to themselves, never this tree.
+    ! grep -rl -e "$source" -e "$build" "$prefix/$LIBDIR/cmake" "$prefix/$LIBDIR/pkgconfig" ||
+        fail "the files above name the build or source tree"
+    local codecs
+    codecs=$("$prefix/$BINDIR/btf" codecs) || fail "the installed btf failed"
+    grep -q '^fmf ' <<<"$codecs" || fail "the installed btf lists no fmf codec"
+
+    export PKG_CONFIG_PATH=$prefix/$LIBDIR/pkgconfig
+    local cflags libs
+    cflags=$("$PKG_CONFIG" --cflags btfkit) || fail "pkg-config --cflags btfkit failed"
+    libs=$("$PKG_CONFIG" --libs btfkit) || fail "pkg-config --libs btfkit failed"
+
+    # btf/btf.h on its own, with nothing but what pkg-config says.
+    # shellcheck disable=SC2086  # the flags are words
+    echo '#include <btf/btf.h>' | quiet "$CXX" -std=c++20 -fsyntax-only $cflags -x c++ -
+
+    # examples/cpp through find_package(btfkit CONFIG).
+    quiet "$CMAKE" -S "$source/examples/cpp" -B "$work/cmake-build" -G Ninja \
+        -DCMAKE_MAKE_PROGRAM="$NINJA" -DCMAKE_CXX_COMPILER="$CXX" -DCMAKE_PREFIX_PATH="$prefix" \
+        -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF
+    grep -qx "btfkit_DIR:PATH=$prefix/$LIBDIR/cmake/btfkit" "$work/cmake-build/CMakeCache.txt" ||
+        fail "find_package(btfkit) found another btfkit: $(grep btfkit_DIR "$work/cmake-build/CMakeCache.txt")"
+    quiet "$CMAKE" --build "$work/cmake-build"
+    mkdir "$work/out-cmake" "$work/out-pc"
+    "$work/cmake-build/btfkit_example" "$work/out-cmake" >"$work/cmake.txt" ||
+        fail "the example (CMake) failed"
+    cat "$work/cmake.txt"
+    check_example_output "$work/cmake.txt"
+    [[ -s $work/out-cmake/woven_fabric.btfpkg ]] || fail "the example wrote no package"
+
+    # The same program through pkg-config: the same library, so the same numbers.
+    # shellcheck disable=SC2086
+    quiet "$CXX" -std=c++20 "$source/examples/cpp/main.cpp" $cflags $libs -o "$work/pc_example"
+    "$work/pc_example" "$work/out-pc" >"$work/pc.txt" || fail "the example (pkg-config) failed"
+    diff <(sed "s|$work/out-cmake|OUT|" "$work/cmake.txt") <(sed "s|$work/out-pc|OUT|" "$work/pc.txt") ||
+        fail "the example built with pkg-config says something else (above)"
+}
+
+install_python() {
+    quiet "$CMAKE" --install "$build" --component python --prefix "$prefix"
+    local site=$prefix/$PYTHON_DIR
+    [[ -f $site/btfkit/__init__.py ]] || fail "not installed: $PYTHON_DIR/btfkit/__init__.py"
+    compgen -G "$site/btfkit/_btfkit*.so" >/dev/null || fail "not installed: the native module"
+    ! find "$prefix" -type f ! -path "$site/btfkit/*" | grep . ||
+        fail "--component python installed more than the module (above)"
+    # The folder is where this Python looks under some prefix (Debian's: /usr/local and /usr).
+    "$PYTHON" -c 'import sys; sys.exit(not any(p.endswith("/" + sys.argv[1]) for p in sys.path))' \
+        "$PYTHON_DIR" || fail "$PYTHON does not search */$PYTHON_DIR"
+    # Imported from the prefix only (not from the build tree), and working.
+    (cd "$work" && PYTHONPATH=$site "$PYTHON" -s - "$site" <<'EOF') || fail "import from the prefix failed"
+import sys
+import btfkit
+assert btfkit.__file__.startswith(sys.argv[1]), btfkit.__file__
+source = btfkit.synth("woven_fabric", 8)
+image = source.image(0, 0)
+assert image.shape == (8, 8, 3) and image.min() >= 0 and image.max() > 0, image
+assert "fmf" in btfkit.codecs()
+print("imported", btfkit.__file__)
+EOF
+}
+
+case $mode in
+    consumer) install_consumer ;;
+    python) install_python ;;
+    *) fail "unknown mode '$mode' (consumer or python)" ;;
+esac
