@@ -10,7 +10,8 @@
 ///
 ///     open_source / synth::make ─► BtfSource ─► find_codec(name).encode ─► Package
 ///     write_package / read_package ─► open_material ─► Material (eval, sample, pdf, albedo)
-///     MaterialSource (a Material as a BtfSource) ─► quality::measure, h5::write, slice_image
+///     MaterialSource (a Material as a BtfSource) ─► quality::measure, h5::write, slice_image,
+///                                                   utia::write
 ///     render::load_scene ─► render::render ─► render::write_render
 
 // Errors (btf::Error, btf::Cancelled) and progress reports of long operations.
@@ -22,12 +23,14 @@
 #include "btf/core/image.h"
 #include "btf/core/material.h"
 
-// Raw BTFs: the BtfSource interface, the readers (open_source), btfkit's HDF5 form, pictures at
-// any direction.
+// Raw BTFs: the BtfSource interface, the readers (open_source), the writers of btfkit's HDF5 form
+// and of UTIA image sets, pictures at any direction, value statistics.
 #include "btf/io/h5.h"
+#include "btf/io/inspect.h"
 #include "btf/io/open.h"
 #include "btf/io/slice.h"
 #include "btf/io/source.h"
+#include "btf/io/utia.h"
 
 // Synthetic materials (synth::make, synth::preset_names).
 #include "btf/synth/synth.h"
@@ -37,10 +40,12 @@
 #include "btf/codecs/material_source.h"
 #include "btf/io/package.h"
 
-// Fidelity: the measures of `btf quality` (quality::measure) and the per-image metrics.
+// Fidelity: the measures of `btf quality` (quality::measure), the per-image metrics, the
+// comparison of rendered pictures and the compression report of `btf report`.
 #include "btf/quality/measure.h"
 #include "btf/quality/metrics.h"
 #include "btf/quality/render_compare.h"
+#include "btf/quality/report.h"
 
 // Rendering: scene files and the path tracer.
 #include "btf/render/renderer.h"
