@@ -1,5 +1,6 @@
 // btf render SCENE.json -o OUT.png|OUT.exr: renders a scene (docs/scenes.md) with the CPU path
-// tracer; the command line overrides the scene's "render" block.
+// tracer; the command line overrides the scene's "render" block, and --material the scene's BTF
+// materials.
 
 #include <cstdio>
 #include <fstream>
@@ -19,7 +20,7 @@ namespace btf::cli {
 namespace {
 
 struct RenderArgs {
-    std::string scene, output, integrator, sampling = "material", size, filter;
+    std::string scene, output, integrator, sampling = "material", size, filter, material;
     int spp = -1, max_depth = -1;
     double time = -1, exposure = NAN;
     int64_t seed = -1;
@@ -167,11 +168,16 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
         ->check(CLI::IsMember({"stochastic", "deterministic"}));
     cmd->add_flag("--aov", args->aovs,
                   "also write <out>.albedo.exr, <out>.normal.exr, <out>.uv.exr");
+    CLI::Option* material = cmd->add_option(
+        "--material", args->material,
+        "render every object with a \"btf\" material with this one instead (any package, .btf "
+        "or raw BTF); the scene's \"file\" is then not opened");
     cmd->add_option("--compare", args->compare,
                     "render the scene twice, every BTF material replaced by A, then by B (any "
                     "package, .btf or raw BTF), and write A | B | ΔE00 heat map to the output, "
                     "<out>.a.png, <out>.b.png, <out>.diff.png and the metrics in <out>.json")
-        ->expected(2);
+        ->expected(2)
+        ->excludes(material);
 
     return {cmd, [args, &global] {
                 render::LoadOptions load;
@@ -180,7 +186,11 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
                                                               : render::SamplingMode::kMaterial;
                 if (args->compare.empty()) {
                     render::check_render_output(args->output, args->aovs);
+                    if (!args->material.empty())
+                        load.btf_override = render::open_material_file(args->material);
                     render::LoadedScene loaded = render::load_scene(args->scene, load);
+                    if (!args->material.empty() && loaded.btf_objects == 0)
+                        fail("{}: --material needs an object with a \"btf\" material", args->scene);
                     const RenderSetup setup = setup_render(*args, loaded);
                     Progress progress = make_progress(global);
                     const render::RenderResult result =

@@ -1,5 +1,6 @@
 // End-to-end tests of `btf render`: a scene with a compressed material renders to PNG and EXR;
-// bad scenes give one line, a non-zero exit and no image. And `btf image-diff`.
+// bad scenes give one line, a non-zero exit and no image; --material stands in for every BTF
+// material; every scene in examples/scenes renders. And `btf image-diff`.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -8,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -157,6 +159,87 @@ TEST_F(RenderCli, CompareRendersTwoVersionsOfAMaterial) {
             " -o " + path("cmp.exr"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("--compare writes a picture"), std::string::npos) << r.output;
+}
+
+TEST_F(RenderCli, MaterialReplacesEveryBtfMaterialOfTheScene) {
+    ASSERT_EQ(run("synth --preset knitted_wool --size 8 -o " + path("w.h5")).code, 0);
+    CliResult r =
+        run("compress " + path("w.h5") + " --codec fmf --components 2 -o " + path("w.btfpkg"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    const std::string scene = R"({
+      "camera": {"position": [0, 1, 3], "look_at": [0, 0.3, 0], "width": 24, "height": 16},
+      "render": {"integrator": "direct", "spp": 2},
+      "objects": [{"shape": "sphere", "radius": 0.5, "position": [0, 0.4, 0],
+                   "material": {"type": "btf", "file": "FILE"}},
+                  {"shape": "plane", "material": {"type": "diffuse"}}],
+      "lights": [{"type": "directional", "direction": [1, 2, 1], "irradiance": 3}]
+    })";
+    const auto with = [&](const std::string& file) {
+        std::string text = scene;
+        text.replace(text.find("FILE"), 4, file);
+        return text;
+    };
+    write("own.json", with("w.btfpkg"));
+    write("other.json", with("absent.btfpkg"));
+    // The scene's own file and --material naming the same package: the same image, and the
+    // scene's file is not opened.
+    ASSERT_EQ((r = run("render " + path("own.json") + " -o " + path("own.exr"))).code, 0)
+        << r.output;
+    ASSERT_EQ((r = run("render " + path("other.json") + " --material " + path("w.btfpkg") + " -o " +
+                       path("other.exr")))
+                  .code,
+              0)
+        << r.output;
+    EXPECT_EQ(read_image(path("own.exr")).values(), read_image(path("other.exr")).values());
+
+    r = run("render " + path("own.json") + " --material " + path("absent.btfpkg") + " -o " +
+            path("no.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("absent.btfpkg: no such file"), std::string::npos) << r.output;
+    write("plain.json",
+          R"({"camera": {}, "objects": [{"shape": "plane", "material": {"type": "diffuse"}}]})");
+    r = run("render " + path("plain.json") + " --material " + path("w.btfpkg") + " -o " +
+            path("no.png"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.output.find("plain.json: --material needs an object with a \"btf\" material"),
+              std::string::npos)
+        << r.output;
+    r = run("render " + path("own.json") + " --material " + path("w.btfpkg") + " --compare " +
+            path("w.btfpkg") + " " + path("w.btfpkg") + " -o " + path("no.png"));
+    EXPECT_NE(r.code, 0);
+    EXPECT_FALSE(fs::exists(path("no.png")));
+}
+
+// The scenes in examples/scenes, each with the material file it names (demo.btfpkg beside it,
+// which examples/scenes/README.md makes): copied with a tiny stand-in material and rendered at a
+// tiny size. Relative paths (the material, meshes) resolve beside the scene file.
+TEST_F(RenderCli, EveryExampleSceneRenders) {
+    const fs::path examples = fs::path(BTF_SOURCE_DIR) / "examples" / "scenes";
+    const fs::path dir = path("example_scenes");
+    fs::create_directories(dir);
+    std::vector<std::string> scenes;
+    for (const fs::directory_entry& entry : fs::directory_iterator(examples)) {
+        if (!entry.is_regular_file() || entry.path().extension() == ".btfpkg") continue;
+        fs::copy_file(entry.path(), dir / entry.path().filename());
+        if (entry.path().extension() == ".json") scenes.push_back(entry.path().stem().string());
+    }
+    ASSERT_GE(scenes.size(), 4u) << examples;
+    ASSERT_EQ(run("synth --preset woven_fabric --size 8 -o " + path("demo.h5")).code, 0);
+    CliResult r = run("compress " + path("demo.h5") + " --codec fmf --components 2 -o " +
+                      (dir / "demo.btfpkg").string());
+    ASSERT_EQ(r.code, 0) << r.output;
+    for (const std::string& scene : scenes) {
+        const fs::path png = dir / (scene + ".png");
+        r = run("render " + (dir / (scene + ".json")).string() + " --size 24,16 --spp 2 -o " +
+                png.string());
+        ASSERT_EQ(r.code, 0) << scene << ": " << r.output;
+        const Image image = read_image(png.string());
+        EXPECT_EQ(image.width(), 24) << scene;
+        EXPECT_EQ(image.height(), 16) << scene;
+        double sum = 0;
+        for (const float v : image.values()) sum += v;
+        EXPECT_GT(sum / double(image.values().size()), 0.02) << scene << ": black";
+    }
 }
 
 TEST_F(RenderCli, BadScenesGiveOneLineAndNoImage) {
