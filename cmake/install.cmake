@@ -7,11 +7,12 @@
 #   P/include/btf/...                      btf/btf.h and the headers it includes    devel
 #   P/lib/cmake/btfkit/                    find_package(btfkit CONFIG): btfkit::btfkit
 #   P/lib/pkgconfig/btfkit.pc              pkg-config --cflags --libs btfkit
-#   P/lib/python3.11/dist-packages/btfkit  the Python module, only with --component python
+#   P/lib/python3.11/dist-packages/btfkit  the Python module                        python
 #
 # A plain `cmake --install` installs runtime and devel. The Python module is left to an explicit
 # `--component python`: it belongs in a Python's own site folder, which a prefix for the library
-# need not be.
+# need not be. That component also holds the libraries the module loads (the image module, and a
+# shared libbtfkit), so that it works on its own.
 #
 # CTest's Install.consumer and Install.python (tests/install_consumer.sh) install into a temporary
 # prefix and build and run examples/cpp and an import of the Python module against it.
@@ -217,7 +218,11 @@ print(os.path.join(os.path.relpath(os.path.dirname(base), '/'),
           COMPONENT python EXCLUDE_FROM_ALL)
   install(FILES ${BTF_PYTHON_SOURCES} DESTINATION ${BTFKIT_INSTALL_PYTHONDIR}/btfkit
           COMPONENT python EXCLUDE_FROM_ALL)
+  install(TARGETS btfkit_images LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/btfkit
+          COMPONENT python EXCLUDE_FROM_ALL)
   if(BTFKIT_SHARED)
+    install(TARGETS btfkit LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} NAMELINK_SKIP
+            COMPONENT python EXCLUDE_FROM_ALL)
     file(RELATIVE_PATH _btfkit_python_to_lib /prefix/${BTFKIT_INSTALL_PYTHONDIR}/btfkit
          /prefix/${CMAKE_INSTALL_LIBDIR})
     set_target_properties(btfkit_python PROPERTIES INSTALL_RPATH "$ORIGIN/${_btfkit_python_to_lib}")

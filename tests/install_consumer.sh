@@ -5,7 +5,8 @@
 #   consumer  `cmake --install`: the files (public headers only, nothing naming this tree), the
 #             installed `btf`, btf/btf.h compiled on its own, examples/cpp built with CMake
 #             (find_package) and with pkg-config, both run, their output checked and compared
-#   python    `cmake --install --component python`: only the module, imported from the prefix
+#   python    `cmake --install --component python`: only the module and the libraries it loads,
+#             the module imported from the prefix
 #
 # Usage: install_consumer.sh consumer|python BUILD_DIR SOURCE_DIR
 # Environment (CTest sets it): CMAKE, CXX, NINJA, PKG_CONFIG, LIBDIR, INCLUDEDIR, BINDIR; for
@@ -103,6 +104,9 @@ install_consumer() {
     [[ -s $work/out-cmake/woven_fabric.btfpkg ]] || fail "the example wrote no package"
 
     # The same program through pkg-config: the same library, so the same numbers.
+    # A shared libbtfkit is found at run time through an rpath, as a user would add one (or
+    # LD_LIBRARY_PATH, or an ldconfig folder).
+    [[ ! -e $prefix/$LIBDIR/libbtfkit.so ]] || libs="$libs -Wl,-rpath,$prefix/$LIBDIR"
     # shellcheck disable=SC2086
     quiet "$CXX" -std=c++20 "$source/examples/cpp/main.cpp" $cflags $libs -o "$work/pc_example"
     "$work/pc_example" "$work/out-pc" >"$work/pc.txt" || fail "the example (pkg-config) failed"
@@ -115,8 +119,11 @@ install_python() {
     local site=$prefix/$PYTHON_DIR
     [[ -f $site/btfkit/__init__.py ]] || fail "not installed: $PYTHON_DIR/btfkit/__init__.py"
     compgen -G "$site/btfkit/_btfkit*.so" >/dev/null || fail "not installed: the native module"
-    ! find "$prefix" -type f ! -path "$site/btfkit/*" | grep . ||
+    # The module and the libraries it loads, nothing else.
+    ! find "$prefix" -type f ! -path "$site/btfkit/*" ! -path "$prefix/$LIBDIR/btfkit/*" \
+        ! -path "$prefix/$LIBDIR/libbtfkit.so*" | grep . ||
         fail "--component python installed more than the module (above)"
+    [[ -f $prefix/$LIBDIR/btfkit/libbtfkit_images.so ]] || fail "not installed: the image module"
     # The folder is where this Python looks under some prefix (Debian's: /usr/local and /usr).
     "$PYTHON" -c 'import sys; sys.exit(not any(p.endswith("/" + sys.argv[1]) for p in sys.path))' \
         "$PYTHON_DIR" || fail "$PYTHON does not search */$PYTHON_DIR"
