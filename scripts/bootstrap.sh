@@ -19,7 +19,7 @@ packages=(
   libxxhash-dev libzstd-dev libdeflate-dev
   libboost-dev
   libgtest-dev libgmock-dev libbenchmark-dev libexpat1-dev
-  python3 python3-h5py python3-numpy
+  python3 python3-h5py python3-numpy python3-matplotlib
   python3-dev pybind11-dev python3-pytest  # the Python module (make python) and its tests
   chromium nginx
   clang-14 libfuzzer-14-dev  # make fuzz, make test-sanitize
