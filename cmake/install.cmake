@@ -40,9 +40,10 @@ foreach(_property_values _btfkit_includes _btfkit_definitions)
   endforeach()
   set(${_property_values} "${_wrapped}")
 endforeach()
+list(APPEND _btfkit_includes "$<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>")
 set_target_properties(
   btfkit PROPERTIES
-  INTERFACE_INCLUDE_DIRECTORIES "${_btfkit_includes};$<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>"
+  INTERFACE_INCLUDE_DIRECTORIES "${_btfkit_includes}"
   INTERFACE_COMPILE_DEFINITIONS "${_btfkit_definitions}"
   # A shared libbtfkit's ABI changes with every minor version while it is 0.x.
   VERSION ${PROJECT_VERSION} SOVERSION ${PROJECT_VERSION_MAJOR}.${PROJECT_VERSION_MINOR})
@@ -137,7 +138,7 @@ foreach(_list BTFKIT_CONFIG_DEPENDENCIES _btfkit_pc_public _btfkit_pc_private _b
 endforeach()
 list(JOIN BTFKIT_CONFIG_DEPENDENCIES "\n" BTFKIT_CONFIG_DEPENDENCIES)
 
-# ---- library, command, image module ---------------------------------------------------------------
+# ---- library, command, image module --------------------------------------------------------------
 install(TARGETS btfkit EXPORT btfkitTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT devel
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT runtime NAMELINK_COMPONENT devel
@@ -152,7 +153,7 @@ if(BTFKIT_SHARED)
   set_target_properties(btf PROPERTIES INSTALL_RPATH "$ORIGIN/${_btfkit_bin_to_lib}")
 endif()
 
-# ---- public headers: the include closure of btf/btf.h ----------------------------------------------
+# ---- public headers: the include closure of btf/btf.h --------------------------------------------
 # The compiler lists what btf/btf.h includes (-MM) into a depfile, which also tells Ninja to list
 # again when any of those headers changes; the install script installs the ones under src/.
 set(BTFKIT_HEADER_LIST ${CMAKE_BINARY_DIR}/btfkit_public_headers.d)
@@ -184,7 +185,7 @@ install(FILES ${CMAKE_BINARY_DIR}/cmake/btfkitConfig.cmake
               ${CMAKE_BINARY_DIR}/cmake/btfkitConfigVersion.cmake
         DESTINATION ${BTFKIT_INSTALL_CMAKEDIR} COMPONENT devel)
 
-# ---- pkg-config: btfkit.pc ------------------------------------------------------------------------
+# ---- pkg-config: btfkit.pc -----------------------------------------------------------------------
 # Relocatable: the prefix is found from where the .pc file lies (${pcfiledir}).
 file(RELATIVE_PATH BTFKIT_PC_PREFIX /prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig /prefix)
 string(REGEX REPLACE "/$" "" BTFKIT_PC_PREFIX "\${pcfiledir}/${BTFKIT_PC_PREFIX}")
@@ -225,7 +226,8 @@ print(os.path.join(os.path.relpath(os.path.dirname(base), '/'),
             COMPONENT python EXCLUDE_FROM_ALL)
     file(RELATIVE_PATH _btfkit_python_to_lib /prefix/${BTFKIT_INSTALL_PYTHONDIR}/btfkit
          /prefix/${CMAKE_INSTALL_LIBDIR})
-    set_target_properties(btfkit_python PROPERTIES INSTALL_RPATH "$ORIGIN/${_btfkit_python_to_lib}")
+    set_target_properties(btfkit_python PROPERTIES
+                          INSTALL_RPATH "$ORIGIN/${_btfkit_python_to_lib}")
   endif()
 endif()
 
@@ -244,9 +246,9 @@ if(BTF_BUILD_TESTS)
     add_test(NAME Install.python
              COMMAND bash ${PROJECT_SOURCE_DIR}/tests/install_consumer.sh python
                      ${CMAKE_BINARY_DIR} ${PROJECT_SOURCE_DIR})
-    set_tests_properties(
-      Install.python PROPERTIES
-      ENVIRONMENT "${_btfkit_install_test_env};PYTHON=${Python3_EXECUTABLE};PYTHON_DIR=${BTFKIT_INSTALL_PYTHONDIR}"
-      TIMEOUT 300)
+    list(APPEND _btfkit_install_test_env "PYTHON=${Python3_EXECUTABLE}"
+         "PYTHON_DIR=${BTFKIT_INSTALL_PYTHONDIR}")
+    set_tests_properties(Install.python PROPERTIES ENVIRONMENT "${_btfkit_install_test_env}"
+                                                   TIMEOUT 300)
   endif()
 endif()

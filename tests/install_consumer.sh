@@ -41,14 +41,16 @@ check_example_output() {
         fail "example: the source line is wrong or missing"
     awk '
         function bad(what) { print "example: " what ": " $0 > "/dev/stderr"; failed = 1 }
-        /^package: / { packages++; if (!($3 + 0 > 10000 && $6 + 0 > 4)) bad("package size or ratio") }
+        /^package: / { packages++
+                       if (!($3 + 0 > 10000 && $6 + 0 > 4)) bad("package size or ratio") }
         /^eval / { evals++
                    for (i = 12; i <= 14; i++) if (!($i > 0.01 && $i < 2)) bad("eval value")
                    if (evals > 1 && !($12 < last)) bad("red not falling as the light goes down")
                    last = $12 }
         /^sample: / { samples++; gsub(/[(),]/, "")
                       if (!($3 >= 0 && $3 <= 90 && $6 > 0 && $6 == $8)) bad("sample or its pdf") }
-        /^albedo: / { albedos++; for (i = 3; i <= 5; i++) if (!($i > 0.01 && $i < 1)) bad("albedo") }
+        /^albedo: / { albedos++
+                      for (i = 3; i <= 5; i++) if (!($i > 0.01 && $i < 1)) bad("albedo") }
         /^quality: / { qualities++; gsub(/,/, "")
                        if (!($3 > 0 && $3 < 0.05 && $5 > 25 && $9 < 5)) bad("quality") }
         END { if (packages != 1 || evals != 3 || samples != 1 || albedos != 1 || qualities != 1) {
@@ -93,8 +95,9 @@ install_consumer() {
     quiet "$CMAKE" -S "$source/examples/cpp" -B "$work/cmake-build" -G Ninja \
         -DCMAKE_MAKE_PROGRAM="$NINJA" -DCMAKE_CXX_COMPILER="$CXX" -DCMAKE_PREFIX_PATH="$prefix" \
         -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF
-    grep -qx "btfkit_DIR:PATH=$prefix/$LIBDIR/cmake/btfkit" "$work/cmake-build/CMakeCache.txt" ||
-        fail "find_package(btfkit) found another btfkit: $(grep btfkit_DIR "$work/cmake-build/CMakeCache.txt")"
+    local cache=$work/cmake-build/CMakeCache.txt
+    grep -qx "btfkit_DIR:PATH=$prefix/$LIBDIR/cmake/btfkit" "$cache" ||
+        fail "find_package(btfkit) found another btfkit: $(grep btfkit_DIR "$cache")"
     quiet "$CMAKE" --build "$work/cmake-build"
     mkdir "$work/out-cmake" "$work/out-pc"
     "$work/cmake-build/btfkit_example" "$work/out-cmake" >"$work/cmake.txt" ||
@@ -110,7 +113,8 @@ install_consumer() {
     # shellcheck disable=SC2086
     quiet "$CXX" -std=c++20 "$source/examples/cpp/main.cpp" $cflags $libs -o "$work/pc_example"
     "$work/pc_example" "$work/out-pc" >"$work/pc.txt" || fail "the example (pkg-config) failed"
-    diff <(sed "s|$work/out-cmake|OUT|" "$work/cmake.txt") <(sed "s|$work/out-pc|OUT|" "$work/pc.txt") ||
+    diff <(sed "s|$work/out-cmake|OUT|" "$work/cmake.txt") \
+        <(sed "s|$work/out-pc|OUT|" "$work/pc.txt") ||
         fail "the example built with pkg-config says something else (above)"
 }
 
@@ -128,7 +132,7 @@ install_python() {
     "$PYTHON" -c 'import sys; sys.exit(not any(p.endswith("/" + sys.argv[1]) for p in sys.path))' \
         "$PYTHON_DIR" || fail "$PYTHON does not search */$PYTHON_DIR"
     # Imported from the prefix only (not from the build tree), and working.
-    (cd "$work" && PYTHONPATH=$site "$PYTHON" -s - "$site" <<'EOF') || fail "import from the prefix failed"
+    cat >"$work/import.py" <<'EOF'
 import sys
 import btfkit
 assert btfkit.__file__.startswith(sys.argv[1]), btfkit.__file__
@@ -138,6 +142,8 @@ assert image.shape == (8, 8, 3) and image.min() >= 0 and image.max() > 0, image
 assert "fmf" in btfkit.codecs()
 print("imported", btfkit.__file__)
 EOF
+    (cd "$work" && PYTHONPATH=$site "$PYTHON" -s import.py "$site") ||
+        fail "import from the prefix failed"
 }
 
 case $mode in
