@@ -214,14 +214,21 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
             py::dict out;
             for (const btf::Codec* c : btf::codecs()) {
                 py::dict params;
-                for (const btf::ParamInfo& p : c->params())
-                    params[py::str(p.name)] = py::make_tuple(p.default_value, p.help);
+                for (const btf::ParamInfo& p : c->params()) {
+                    py::dict info;
+                    info["type"] = p.type;
+                    info["default"] = p.default_value;
+                    info["range"] = p.range;
+                    info["help"] = p.help;
+                    params[py::str(p.name)] = info;
+                }
                 out[py::str(std::string(c->name()))] =
                     py::make_tuple(std::string(c->description()), params);
             }
             return out;
         },
-        "Every codec: name -> (description, {parameter: (default, help)}).");
+        "Every codec: name -> (description, {parameter: {'type', 'default', 'range', 'help'}}), "
+        "the default as `-p name=value` takes it.");
 
     m.def(
         "_compress",

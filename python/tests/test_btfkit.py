@@ -54,6 +54,13 @@ def test_codecs_list_their_parameters():
     assert {"fmf", "mlvq", "lpca"} <= set(codecs)
     description, params = codecs["fmf"]
     assert "components" in params and "power-iterations" in params
+    assert params["components"]["type"] == "int" and params["components"]["range"] == "1..4096"
+    # The shared factorization parameters are the same declaration in every such codec.
+    for name in ("fmf", "pca-views", "lpca", "perceptual"):
+        assert codecs[name][1]["quantize"] == {
+            "type": "choice", "default": "f16", "range": "f32|f16|u8",
+            "help": "factor storage: f32, f16 or u8 (8 bits with per-component scale)"}
+    assert codecs["mlvq"][1]["threshold"]["default"] == "3e-5"
 
 
 def texel_queries(source, n, rng):

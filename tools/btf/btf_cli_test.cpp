@@ -404,8 +404,7 @@ TEST_F(BtfCli, CompressErrorsGiveOneLineAndNoFile) {
                  "parameter colour: 'purple' is not one of");
     expect_error("compress " + path("missing.h5") + " -o " + out, "no such file or folder");
     expect_error("compress " + h5 + " " + h5 + " -o " + out + " --codec fmf",
-                 "fmf compresses one input; several inputs share code-books only with --codec "
-                 "mlvq");
+                 "codec fmf compresses one input; several inputs share code-books only with mlvq");
     r = run("compress " + h5 + " -o " + path("err.h5.out"));
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.output.find("name the output *.btfpkg"), std::string::npos) << r.output;

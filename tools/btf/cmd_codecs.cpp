@@ -25,7 +25,12 @@ Command register_codecs(CLI::App& app, GlobalOptions&) {
                         width = std::max(width, p.name.size() + 1 + p.default_value.size());
                     for (const ParamInfo& p : params) {
                         const std::string item = p.name + "=" + p.default_value;
-                        std::printf("    %-*s  %s\n", int(width), item.c_str(), p.help.c_str());
+                        // Numbers show their range; choices and flags list their values in the
+                        // help already.
+                        const std::string range =
+                            p.type == "int" || p.type == "number" ? " [" + p.range + "]" : "";
+                        std::printf("    %-*s  %s%s\n", int(width), item.c_str(), p.help.c_str(),
+                                    range.c_str());
                     }
                 }
             }};

@@ -8,7 +8,6 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/material_source.h"
-#include "btf/codecs/mlvq/mlvq.h"
 #include "btf/io/package.h"
 #include "btf/util/error.h"
 #include "cli.h"
@@ -66,34 +65,18 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
                 if (components->count())
                     shortcut("components", std::to_string(args->components), "--components");
                 if (quantize->count()) shortcut("quantize", args->quantize, "--quantize");
-                {
-                    // The codec's own message for a parameter it does not know.
-                    const Params names(params.values());
-                    for (const ParamInfo& info : codec.params())
-                        names.get_string(info.name, info.default_value);
-                    names.check_all_used(codec.name(), codec.params());
-                }
-
-                if (args->inputs.size() > 1 && codec.name() != "mlvq")
-                    fail(
-                        "{} compresses one input; several inputs share code-books only with "
-                        "--codec mlvq",
-                        codec.name());
+                codec.validate(params);
                 std::vector<std::unique_ptr<BtfSource>> sources;
                 for (const std::string& input : args->inputs)
                     sources.push_back(open_input(input, args->open, args->views));
                 Progress progress = make_progress(global);
                 const auto start = std::chrono::steady_clock::now();
                 Package package;
-                if (sources.size() == 1) {
-                    package = codec.encode(*sources[0], params, progress);
-                } else {
-                    const mlvq::Options options = mlvq::parse_options(params);
+                {
                     std::vector<const BtfSource*> list;
                     for (const auto& s : sources) list.push_back(s.get());
-                    auto [books, indices] = mlvq::encode_shared(list, options, progress);
-                    for (size_t k = 0; k < indices.size(); ++k) indices[k].name = args->inputs[k];
-                    package = mlvq::to_package(books, indices, options);
+                    // One input: encode(); several: the codec's shared package or its refusal.
+                    package = codec.encode_several(list, args->inputs, params, progress);
                 }
                 PackageWriteOptions write_options;
                 write_options.zstd_level = args->zstd;
@@ -106,7 +89,7 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
                     if (sources.size() == 1) {
                         rmse[0] = sample_rmse(*sources[0], *open_material(package), progress);
                     } else {
-                        const auto materials = mlvq::open_all(package);
+                        const auto materials = codec.open_all(package);
                         for (size_t k = 0; k < sources.size(); ++k)
                             rmse[k] = sample_rmse(*sources[k], *materials[k], progress);
                     }

@@ -113,17 +113,22 @@ void package_info(const std::string& path, bool json) {
     const Package package = read_package(path);
     if (package.codec() == "bsvtf") return bsvtf_info(path, package, json);
     // Opening checks the package through its codec and gives extent and sampling for any codec.
-    std::unique_ptr<Material> material;
+    // A package of several materials (mlvq's shared code-books) is described by its first; its
+    // ratio counts them all.
+    std::vector<std::unique_ptr<Material>> materials;
     try {
-        material = open_material(package);
+        materials = find_codec(package.codec()).open_all(package);
     } catch (const Cancelled&) {
         throw;
     } catch (const Error& e) {
         fail("{}: {}", path, e.what());
     }
+    const Material* material = materials.front().get();
     const Sampling& s = material->sampling();
-    const double raw_8bit =
-        double(material->width()) * double(material->height()) * double(s.num_images()) * 3.0;
+    double raw_8bit = 0;
+    for (const auto& m : materials)
+        raw_8bit +=
+            double(m->width()) * double(m->height()) * double(m->sampling().num_images()) * 3.0;
     const double bytes = double(package.file_bytes);
     const nlohmann::json params = package.header.value("params", nlohmann::json::object());
     std::string quantization;

@@ -11,6 +11,7 @@
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/lpca/lpca.h"
 #include "btf/codecs/mlvq/mlvq.h"
+#include "btf/codecs/param_schema.h"
 #include "btf/codecs/pca_views/pca_views.h"
 #include "btf/codecs/perceptual/perceptual.h"
 #include "btf/io/ubo2014.h"
@@ -87,6 +88,44 @@ void Params::check_all_used(std::string_view codec, const std::vector<ParamInfo>
         for (const ParamInfo& info : known) names.push_back(info.name);
         fail("codec {}: unknown parameter '{}' (known: {})", codec, key, fmt::join(names, ", "));
     }
+}
+
+namespace {
+
+// fmt writes exponents with two digits at least ("3e-05"); parameters read better as "3e-5".
+std::string plain_exponent(std::string text) {
+    for (const char* sign : {"e-0", "e+0"}) {
+        const size_t at = text.find(sign);
+        if (at != std::string::npos) text.erase(at + 2, 1);
+    }
+    return text;
+}
+
+}  // namespace
+
+std::string param_number_text(double value) {
+    return plain_exponent(fmt::format("{}", value));
+}
+
+std::string param_number_text(float value) {
+    return plain_exponent(fmt::format("{}", value));
+}
+
+Package Codec::encode_several(std::span<const BtfSource* const> sources,
+                              std::span<const std::string>, const Params& params,
+                              Progress& progress) const {
+    if (sources.size() == 1) return encode(*sources[0], params, progress);
+    std::vector<std::string> several;
+    for (const Codec* codec : codecs())
+        if (codec->encodes_several()) several.emplace_back(codec->name());
+    fail("codec {} compresses one input; several inputs share code-books only with {}", name(),
+         fmt::join(several, ", "));
+}
+
+std::vector<std::unique_ptr<Material>> Codec::open_all(const Package& package) const {
+    std::vector<std::unique_ptr<Material>> out;
+    out.push_back(open(package));
+    return out;
 }
 
 const std::vector<const Codec*>& codecs() {

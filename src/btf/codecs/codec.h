@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -19,10 +20,13 @@
 
 namespace btf {
 
-/// One parameter a codec understands: shown by `btf codecs` and checked by Params.
+/// One parameter a codec understands, as its ParamSchema declares it (codecs/param_schema.h):
+/// shown by `btf codecs`, the report and Python's keyword arguments.
 struct ParamInfo {
     std::string name;
-    std::string default_value;
+    std::string type;           ///< "int", "number", "bool" or "choice"
+    std::string default_value;  ///< as `-p name=value` takes it
+    std::string range;          ///< "1..4096", "0..1", "rgb|decorrelated" or "true|false"
     std::string help;
 };
 
@@ -70,6 +74,9 @@ class Codec {
     virtual std::string_view description() const = 0;
     /// Every parameter encode() accepts, with its default.
     virtual std::vector<ParamInfo> params() const = 0;
+    /// Checks `params` as encode() reads them (unknown keys, types, ranges, combinations) without
+    /// encoding anything: a caller can refuse bad parameters before reading a large input.
+    virtual void validate(const Params& params) const = 0;
 
     /// Compresses `source`, reading it image by image (possibly in several passes). Throws
     /// btf::Error for bad parameters (unknown ones included) and btf::Cancelled when `progress`
@@ -80,6 +87,18 @@ class Codec {
     /// Opens a package this codec wrote, or any clean prefix of one (fewer sections: a
     /// lower-quality material). Throws btf::Error if the header or a section is inconsistent.
     virtual std::unique_ptr<Material> open(const Package& package) const = 0;
+
+    /// Whether encode_several() puts several materials into one package (mlvq: shared
+    /// code-books). The default is false.
+    virtual bool encodes_several() const { return false; }
+    /// Compresses several sources into one package, `names[k]` naming source k in it. The default
+    /// refuses with "codec NAME compresses one input …".
+    virtual Package encode_several(std::span<const BtfSource* const> sources,
+                                   std::span<const std::string> names, const Params& params,
+                                   Progress& progress = Progress::none()) const;
+    /// Every material of a package, in order: one, unless encode_several() wrote it. open() of a
+    /// package with several materials opens the first (what the viewer and `btf eval` show).
+    virtual std::vector<std::unique_ptr<Material>> open_all(const Package& package) const;
 };
 
 /// Every compiled-in codec, in a fixed order.

@@ -69,14 +69,6 @@ std::vector<CodecConfig> parse_one(const std::string& text) {
             params.push_back({resolved, {value}});
         }
     }
-    {
-        // The codec's own message for a parameter it does not know (it lists the known ones).
-        std::map<std::string, std::string> names;
-        for (const auto& [key, values] : params) names[key] = values.front();
-        const Params check(std::move(names));
-        for (const ParamInfo& info : codec.params()) check.get_string(info.name, "");
-        check.check_all_used(codec.name(), codec.params());
-    }
     for (const auto& [key, values] : params)
         for (size_t i = 0; i < values.size(); ++i)
             for (size_t j = 0; j < i; ++j)
@@ -96,6 +88,8 @@ std::vector<CodecConfig> parse_one(const std::string& text) {
             }
         configs = std::move(next);
     }
+    // The codec's own message for a parameter it does not know or a value it refuses.
+    for (const CodecConfig& config : configs) codec.validate(config.to_params());
     return configs;
 }
 

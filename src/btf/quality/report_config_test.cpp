@@ -93,6 +93,7 @@ TEST(ReportConfig, ErrorsNameTheProblemOnOneLine) {
         {"fmf:8", "value '8' has no parameter"},
         {"fmf:C=8,components=16", "parameter components is given twice"},
         {"fmf:C=8,8", "parameter components: value 8 is given twice"},
+        {"fmf:C=2,0", "parameter components: 0 is outside [1, 4096]"},  // before any encoding
         {"fmf:", "no parameters after ':'"},
         {"fmf:C=8,,16", "empty item"},
         {"fmf:=3", "parameter name missing"},

@@ -77,11 +77,6 @@ size_t column_bytes(Quantization q, int64_t n) {
     return 0;
 }
 
-std::vector<ParamInfo> quantization_params() {
-    return {
-        {"quantize", "f16", "factor storage: f32, f16 or u8 (8 bits with per-component scale)"}};
-}
-
 std::vector<int> allocate_components(const std::vector<const Svd*>& planes, int components) {
     std::vector<std::pair<float, int>> all;  // (sigma, plane)
     for (size_t p = 0; p < planes.size(); ++p)

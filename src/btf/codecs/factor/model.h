@@ -280,8 +280,4 @@ class FactorCodec : public Codec {
                              Progress& progress) const = 0;
 };
 
-/// The parameters every factorization codec shares: quantize (f32|f16|u8), zstd level is a
-/// package write option instead. Appends their ParamInfo.
-std::vector<ParamInfo> quantization_params();
-
 }  // namespace btf::factor

@@ -7,18 +7,12 @@
 // a small exact SVD, computed in 2 + 2q streaming passes over the source, one view's images at a
 // time, so memory stays at the factors plus one view even for a BTF larger than RAM.
 //
-// Parameters (btf codecs fmf):
-//   components=C        components kept (rgb: of the one matrix; decorrelated: in total over the
-//                       three planes, allocated by largest singular value as in `003` §5.1;
-//                       per-channel and model11: per plane, as UBO2014 DFMF files need)
-//   colour=rgb          rgb (colour inside the ABRDF, as FMF), decorrelated (orthonormal
-//                       luminance/chroma planes), per-channel (R, G, B planes), model11 (UBO log
-//                       Y, U/Y, V/Y planes)
-//   mean=false          subtract the mean ABRDF (row means) before factorizing
-//   log=false           factorize log(value + log-eps): dynamic-range reduction for HDR sources
-//   log-eps=0.001
-//   oversampling=10, power-iterations=3, seed=1   randomized SVD settings
-//   quantize=f16        factor storage: f32, f16, u8
+// Parameters: schema() below declares each once (name, range, help; the default is the Options
+// initializer in fmf.h); `btf codecs` lists them. How components are counted: rgb keeps C of the
+// one matrix; decorrelated keeps C in total over the three planes, allocated by largest singular
+// value as in `003` §5.1; per-channel and model11 keep C per plane, as UBO2014 DFMF files need.
+// Colour bases: rgb (colour inside the ABRDF, as FMF), decorrelated (orthonormal luminance/chroma
+// planes), per-channel (R, G, B planes), model11 (UBO log Y, U/Y, V/Y planes).
 
 #include "btf/codecs/fmf/fmf.h"
 
@@ -27,6 +21,7 @@
 #include <algorithm>
 #include <numeric>
 
+#include "btf/codecs/factor/params.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -35,54 +30,35 @@ namespace fmf {
 
 namespace {
 
-std::vector<ParamInfo> parameters() {
-    std::vector<ParamInfo> p = {
-        {"components", "32",
-         "components kept (decorrelated: in total over the planes; per-channel, model11: per "
-         "plane)"},
-        {"colour", "rgb", "rgb, decorrelated, per-channel or model11"},
-        {"mean", "false", "subtract the mean ABRDF before factorizing"},
-        {"log", "false", "factorize log(value + log-eps) (HDR dynamic-range reduction)"},
-        {"log-eps", "0.001", "offset of the log"},
-        {"oversampling", "10", "extra random vectors of the randomized SVD"},
-        {"power-iterations", "3", "power iterations of the randomized SVD (2 passes each)"},
-        {"seed", "1", "random seed"},
-    };
-    for (ParamInfo& q : factor::quantization_params()) p.push_back(std::move(q));
-    return p;
+const ParamSchema<Options>& schema() {
+    static const ParamSchema<Options> schema = [] {
+        ParamSchema<Options> s{"fmf"};
+        s.integer("components", &Options::components, 1, 4096,
+                  "components kept (decorrelated: in total over the planes; per-channel, model11: "
+                  "per plane)");
+        factor::declare_colour(s,
+                               {factor::ColourBasis::kRgb, factor::ColourBasis::kDecorrelated,
+                                factor::ColourBasis::kPerChannel, factor::ColourBasis::kUboModel11},
+                               "rgb, decorrelated, per-channel or model11");
+        s.flag("mean", &Options::subtract_mean, "subtract the mean ABRDF before factorizing");
+        factor::declare_storage_and_svd(s);
+        return s;
+    }();
+    return schema;
 }
 
 }  // namespace
 
 Options parse_options(const Params& params) {
-    Options o;
-    o.components = params.get_int("components", o.components, 1, 4096);
-    o.colour.basis = factor::parse_colour_basis(
-        params.get_choice("colour", "rgb", {"rgb", "decorrelated", "per-channel", "model11"}));
-    o.subtract_mean = params.get_bool("mean", false);
-    o.colour.log = params.get_bool("log", false);
-    o.colour.log_eps = static_cast<float>(params.get_double("log-eps", 1e-3, 1e-12, 1e3));
-    if (o.colour.log && o.colour.basis == factor::ColourBasis::kUboModel11)
-        fail("parameter log: model11 is logarithmic already");
-    o.oversampling = params.get_int("oversampling", o.oversampling, 0, 1024);
-    o.power_iterations = params.get_int("power-iterations", o.power_iterations, 0, 64);
-    o.seed = static_cast<uint64_t>(params.get_int("seed", 1, 0, 1 << 30));
-    o.quantization = factor::parse_quantization(params.get_string("quantize", "f16"));
-    params.check_all_used("fmf", parameters());
-    return o;
+    return schema().parse(params);
 }
 
 factor::Model factorize(const BtfSource& source, const Options& options, Progress& progress) {
     factor::Model model = factor::model_for(source, options.colour, "fmf");
     const factor::SourceRows rows(source, options.colour, model.groups);
 
-    factor::SvdOptions svd;
-    svd.rank = options.components;
-    svd.oversampling = options.oversampling;
-    svd.power_iterations = options.power_iterations;
-    svd.subtract_mean = options.subtract_mean;
-    svd.seed = options.seed;
-    std::vector<factor::Svd> planes = factor::randomized_svd(rows, svd, progress);
+    std::vector<factor::Svd> planes = factor::randomized_svd(
+        rows, factor::svd_options(options, options.components, options.subtract_mean), progress);
 
     // Components per plane: all of them, or for decorrelated planes the C largest singular values
     // over the three planes (003 §5.1).
@@ -109,23 +85,16 @@ class FmfCodec final : public factor::FactorCodec {
     std::string_view description() const override {
         return "full-matrix factorization: streaming randomized SVD of the whole BTF matrix";
     }
-    std::vector<ParamInfo> params() const override { return fmf::parameters(); }
+    std::vector<ParamInfo> params() const override { return fmf::schema().infos(); }
+    void validate(const Params& params) const override { fmf::schema().parse(params); }
 
   protected:
     Result factorize(const BtfSource& source, const Params& params,
                      Progress& progress) const override {
-        const fmf::Options options = fmf::parse_options(params);
+        const fmf::Options options = fmf::schema().parse(params);
         Result result;
         result.model = fmf::factorize(source, options, progress);
-        result.params = {{"components", options.components},
-                         {"colour", factor::to_string(options.colour.basis)},
-                         {"mean", options.subtract_mean},
-                         {"log", options.colour.log},
-                         {"log-eps", options.colour.log_eps},
-                         {"oversampling", options.oversampling},
-                         {"power-iterations", options.power_iterations},
-                         {"seed", options.seed},
-                         {"quantize", factor::to_string(options.quantization)}};
+        result.params = fmf::schema().to_json(options);
         result.quantization = options.quantization;
         return result;
     }

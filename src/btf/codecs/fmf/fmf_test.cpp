@@ -262,8 +262,8 @@ TEST(Fmf, RejectsBadParameters) {
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"componets", "3"}}));
               }),
-              "codec fmf: unknown parameter 'componets' (known: components, colour, mean, log, "
-              "log-eps, oversampling, power-iterations, seed, quantize)");
+              "codec fmf: unknown parameter 'componets' (known: components, colour, log, log-eps, "
+              "mean, quantize, oversampling, power-iterations, seed)");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"components", "0"}}));
               }),
@@ -275,7 +275,7 @@ TEST(Fmf, RejectsBadParameters) {
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"quantize", "u4"}}));
               }),
-              "unknown quantization 'u4' (known: f32, f16, u8)");
+              "parameter quantize: 'u4' is not one of f32, f16, u8");
 }
 
 // Private writable memory the process has mapped (VmData), in bytes.

@@ -23,19 +23,9 @@
 /// needs the whole BTF in memory; k-means in the principal subspace is its one-pass counterpart.
 /// Clusters that end up empty (data with fewer distinct ABRDFs than `clusters`) are dropped.
 ///
-/// Parameters:
-///   clusters         texel clusters (default 7)
-///   components       principal components per cluster (default 5); with decorrelated colour
-///                    shared by the cluster's three planes, allocated by singular value
-///   colour           rgb (the three channels inside each ABRDF, one plane) or decorrelated
-///                    (three luminance/chroma planes); default rgb
-///   log              factorize log(value + 0.001) (for HDR data); default false
-///   quantize         f32, f16 or u8 storage of the factors; default f16
-///   iterations       Lloyd iterations of k-means at most (default 20)
-///   projection       rank R of the subspace the texels are clustered in (default 32)
-///   power-iterations randomized SVD power iterations (default 2)
-///   oversampling     extra random vectors of the range finder (default 10)
-///   seed             random seed of k-means and the range finder (default 1)
+/// Parameters: schema() below declares each once (the default is the Options initializer in
+/// lpca.h); `btf codecs` lists them. With decorrelated colour, a cluster's components are shared
+/// by its three planes, allocated by singular value.
 ///
 /// Package: the shared factor model (factor/model.h) with the texel clusters as a section, the
 /// row means of every cluster, then the components of all clusters in decreasing energy, so a
@@ -49,6 +39,7 @@
 #include <random>
 #include <tuple>
 
+#include "btf/codecs/factor/params.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -61,34 +52,23 @@ constexpr std::string_view kName = "lpca";
 
 using Centres = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-const std::vector<ParamInfo>& param_infos() {
-    static const std::vector<ParamInfo> infos = [] {
-        std::vector<ParamInfo> out = {
-            {"clusters", "7", "texel clusters (k-means of the texels' ABRDFs)"},
-            {"components", "5",
-             "principal components per cluster (shared by the planes when decorrelated)"},
-            {"colour", "rgb", "rgb (colour inside the rows) or decorrelated (luminance/chroma)"},
-            {"log", "false", "factorize log(value + 0.001) (dynamic range reduction for HDR)"},
-        };
-        for (ParamInfo& info : factor::quantization_params()) out.push_back(std::move(info));
-        out.push_back({"iterations", "20", "Lloyd iterations of k-means at most"});
-        out.push_back({"projection", "32", "rank of the subspace the texels are clustered in"});
-        out.push_back({"power-iterations", "2", "power iterations of the randomized SVDs"});
-        out.push_back({"oversampling", "10", "extra random vectors of the randomized SVDs"});
-        out.push_back({"seed", "1", "random seed of k-means and the randomized SVDs"});
-        return out;
+const ParamSchema<Options>& schema() {
+    static const ParamSchema<Options> schema = [] {
+        ParamSchema<Options> s{std::string(kName)};
+        s.integer("clusters", &Options::clusters, 1, 1 << 16,
+                  "texel clusters (k-means of the texels' ABRDFs)")
+            .integer("components", &Options::components, 1, 1 << 16,
+                     "principal components per cluster (shared by the planes when decorrelated)");
+        factor::declare_colour(s, {factor::ColourBasis::kRgb, factor::ColourBasis::kDecorrelated},
+                               "rgb (colour inside the rows) or decorrelated (luminance/chroma)");
+        s.integer("iterations", &Options::iterations, 0, 10000,
+                  "Lloyd iterations of k-means at most")
+            .integer("projection", &Options::projection, 1, 4096,
+                     "rank of the subspace the texels are clustered in");
+        factor::declare_storage_and_svd(s);
+        return s;
     }();
-    return infos;
-}
-
-factor::SvdOptions svd_options(const Options& options, int rank) {
-    factor::SvdOptions out;
-    out.rank = rank;
-    out.oversampling = options.oversampling;
-    out.power_iterations = options.power_iterations;
-    out.subtract_mean = true;
-    out.seed = options.seed;
-    return out;
+    return schema;
 }
 
 std::vector<int> all_views(const BtfSource& source) {
@@ -123,13 +103,14 @@ class LpcaCodec final : public factor::FactorCodec {
     std::string_view description() const override {
         return "local PCA: k-means clusters of texel ABRDFs, one PCA per cluster";
     }
-    std::vector<ParamInfo> params() const override { return param_infos(); }
+    std::vector<ParamInfo> params() const override { return schema().infos(); }
+    void validate(const Params& params) const override { schema().parse(params); }
 
   protected:
     Result factorize(const BtfSource& source, const Params& params,
                      Progress& progress) const override {
-        const Options options = parse_options(params);
-        return {lpca::factorize(source, options, progress), options_json(options),
+        const Options options = schema().parse(params);
+        return {lpca::factorize(source, options, progress), schema().to_json(options),
                 options.quantization};
     }
 };
@@ -137,34 +118,7 @@ class LpcaCodec final : public factor::FactorCodec {
 }  // namespace
 
 Options parse_options(const Params& params) {
-    Options options;
-    options.clusters = params.get_int("clusters", 7, 1, 1 << 16);
-    options.components = params.get_int("components", 5, 1, 1 << 16);
-    options.colour.basis =
-        factor::parse_colour_basis(params.get_choice("colour", "rgb", {"rgb", "decorrelated"}));
-    options.colour.log = params.get_bool("log", false);
-    options.quantization =
-        factor::parse_quantization(params.get_choice("quantize", "f16", {"f32", "f16", "u8"}));
-    options.iterations = params.get_int("iterations", 20, 0, 10000);
-    options.projection = params.get_int("projection", 32, 1, 4096);
-    options.power_iterations = params.get_int("power-iterations", 2, 0, 64);
-    options.oversampling = params.get_int("oversampling", 10, 0, 4096);
-    options.seed = static_cast<uint64_t>(params.get_int("seed", 1, 0, 1 << 30));
-    params.check_all_used(kName, param_infos());
-    return options;
-}
-
-nlohmann::json options_json(const Options& options) {
-    return {{"clusters", options.clusters},
-            {"components", options.components},
-            {"colour", factor::to_string(options.colour.basis)},
-            {"log", options.colour.log},
-            {"quantize", factor::to_string(options.quantization)},
-            {"iterations", options.iterations},
-            {"projection", options.projection},
-            {"power-iterations", options.power_iterations},
-            {"oversampling", options.oversampling},
-            {"seed", options.seed}};
+    return schema().parse(params);
 }
 
 std::vector<int32_t> kmeans(const factor::Matrix& points, int clusters, int iterations,
@@ -261,8 +215,8 @@ std::vector<int32_t> lloyd(const factor::Matrix& points, const factor::Matrix& i
 
 factor::Matrix project_texels(const BtfSource& source, const Options& options, Progress& progress) {
     const factor::SourceRows rows(source, options.colour, {all_views(source)});
-    const std::vector<factor::Svd> svds =
-        factor::randomized_svd(rows, svd_options(options, options.projection), progress);
+    const std::vector<factor::Svd> svds = factor::randomized_svd(
+        rows, factor::svd_options(options, options.projection, true), progress);
     int64_t dims = 0;
     for (const factor::Svd& svd : svds) dims += svd.sigma.size();
     factor::Matrix coordinates(source.num_texels(), dims);
@@ -340,8 +294,8 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
     if (clusters > 1) model.texel_cluster = label;
 
     const ClusterRows rows(source, options.colour, texels);
-    const std::vector<factor::Svd> svds =
-        factor::randomized_svd(rows, svd_options(options, options.components), progress);
+    const std::vector<factor::Svd> svds = factor::randomized_svd(
+        rows, factor::svd_options(options, options.components, true), progress);
     const int planes = options.colour.planes();
     model.blocks.resize(static_cast<size_t>(planes) * clusters);
     for (int c = 0; c < clusters; ++c) {

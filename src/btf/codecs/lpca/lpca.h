@@ -75,8 +75,5 @@ class ClusterRows final : public factor::RowBatches {
 factor::Model factorize(const BtfSource& source, const Options& options,
                         Progress& progress = Progress::none());
 
-/// The package header's "params": the options as resolved (defaults filled in).
-nlohmann::json options_json(const Options& options);
-
 }  // namespace lpca
 }  // namespace btf

@@ -28,17 +28,12 @@
 // one chain, bilinear in (α, β) within its M entry; its mean is eval() for YCbCr colour.
 // Sampling draws from the term's M entry alone, as sample() does from a mixture component.
 //
-// Parameters (btf codecs mlvq):
-//   threshold=3e-5     ε_P4: mse — largest mean squared error of a texel's F_x in plane units
-//                      (Y ≈ reflectance), mssim — largest 98th percentile of 1 − SSIM
-//   level-factor=1     mse: each luminance level below P4 takes this times the threshold above
-//                      (the paper's constant is 0.4; 1 keeps the same bound with far smaller
-//                      code-books, see encoder.h)
-//   chroma-threshold=3e-5  mse: ε of I2; I1 and C take level-factor and its square times it
-//   measure=mse        mse or mssim (§4.4)
-//   colour=auto        auto (ycbcr for LDR, logluv for HDR), ycbcr, logluv
-//   n-alpha=11, n-beta=11, n-theta-v=7, n-phi-v=16    the grid (§6)
-//   first=0.01, second=0.04, growth=2.5               training (§5.1.1)
+// Parameters: schema() below declares each once (the default is the Options initializer in
+// mlvq.h and encoder.h); `btf codecs` lists them. Notes: the mse threshold is in plane units
+// (Y ≈ reflectance), the mssim one a 98th percentile of 1 − SSIM; each luminance level below P4
+// takes level-factor times the threshold above (the paper's constant is 0.4; 1 keeps the same
+// bound with far smaller code-books, see encoder.h); I1 and C take level-factor and its square
+// times chroma-threshold; the grid is §6's, the training §5.1.1's.
 
 #include "btf/codecs/mlvq/mlvq.h"
 
@@ -57,6 +52,7 @@
 #endif
 
 #include "btf/codecs/factor/model.h"
+#include "btf/codecs/param_schema.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/core/pick_lanes.h"
 #include "btf/util/error.h"
@@ -72,24 +68,56 @@ namespace {
 
 constexpr const char* kName = "mlvq";
 
-std::vector<ParamInfo> parameters() {
-    return {
-        {"threshold", "3e-5",
-         "largest error of a texel's F_x at P4: mse in plane units (Y ~ reflectance), or the 98th "
-         "percentile of 1 - SSIM"},
-        {"level-factor", "1",
-         "mse: threshold ratio between successive luminance code-books (the paper: 0.4)"},
-        {"chroma-threshold", "3e-5", "mse threshold of I2 (I1, C: times level-factor, its square)"},
-        {"measure", "mse", "similarity measure: mse or mssim"},
-        {"colour", "auto", "auto (ycbcr for LDR, logluv for HDR), ycbcr or logluv"},
-        {"n-alpha", "11", "light slices (alpha)"},
-        {"n-beta", "11", "samples along a slice (beta), poles included"},
-        {"n-theta-v", "7", "view elevations 0-90 degrees"},
-        {"n-phi-v", "16", "view azimuths (1: isotropic)"},
-        {"first", "0.01", "training step 1: fraction of texels inserted at the threshold"},
-        {"second", "0.04", "training step 2: fraction of texels inserted at growth x threshold"},
-        {"growth", "2.5", "threshold factor of training step 2"},
-    };
+const ParamSchema<Options>& schema() {
+    static const ParamSchema<Options> schema = [] {
+        ParamSchema<Options> s{kName};
+        s.number(
+             "threshold", [](auto& o) -> auto& { return o.encoder.threshold; }, 0, 1e6,
+             "largest error of a texel's F_x at P4: mse in plane units (Y ~ reflectance), or "
+             "the 98th percentile of 1 - SSIM")
+            .number(
+                "level-factor", [](auto& o) -> auto& { return o.encoder.level_factor; }, 1e-6, 1,
+                "mse: threshold ratio between successive luminance code-books (the paper: 0.4)")
+            .number(
+                "chroma-threshold", [](auto& o) -> auto& { return o.encoder.threshold_i2; }, 0, 1e6,
+                "mse threshold of I2 (I1, C: times level-factor, its square)")
+            .choice(
+                "measure", [](auto& o) -> auto& { return o.encoder.measure; },
+                std::vector<std::pair<std::string, Measure>>{{"mse", Measure::mse},
+                                                             {"mssim", Measure::mssim}},
+                "similarity measure: mse or mssim")
+            .choice("colour", &Options::colour,
+                    std::vector<std::pair<std::string, std::optional<ColourModel>>>{
+                        {"auto", std::nullopt},
+                        {"ycbcr", ColourModel::kYCbCr},
+                        {"logluv", ColourModel::kLogLuv}},
+                    "auto (ycbcr for LDR, logluv for HDR), ycbcr or logluv")
+            .integer(
+                "n-alpha", [](auto& o) -> auto& { return o.encoder.grid.n_alpha; }, 3,
+                MlvqGrid::kMaxAxis, "light slices (alpha)")
+            .integer(
+                "n-beta", [](auto& o) -> auto& { return o.encoder.grid.n_beta; }, 3,
+                MlvqGrid::kMaxAxis, "samples along a slice (beta), poles included")
+            .integer(
+                "n-theta-v", [](auto& o) -> auto& { return o.encoder.grid.n_theta_v; }, 2,
+                MlvqGrid::kMaxAxis, "view elevations 0-90 degrees")
+            .integer(
+                "n-phi-v", [](auto& o) -> auto& { return o.encoder.grid.n_phi_v; }, 1,
+                MlvqGrid::kMaxAxis, "view azimuths (1: isotropic)")
+            .number("first", &Options::first_fraction, 0, 1,
+                    "training step 1: fraction of texels inserted at the threshold")
+            .number("second", &Options::second_fraction, 0, 1,
+                    "training step 2: fraction of texels inserted at growth x threshold")
+            .number("growth", &Options::growth, 1, 1e6, "threshold factor of training step 2")
+            .then([](Options& o) {
+                EncoderOptions& e = o.encoder;
+                e.threshold_i1 = e.threshold_i2 * e.level_factor;
+                e.threshold_c = e.threshold_i2 * e.level_factor * e.level_factor;
+                e.grid.validate();
+            });
+        return s;
+    }();
+    return schema;
 }
 
 double now() {
@@ -144,28 +172,7 @@ int band_rows(const BtfSource& source, int64_t per_texel_resampled, int64_t memo
 }  // namespace
 
 Options parse_options(const Params& params) {
-    Options o;
-    EncoderOptions& e = o.encoder;
-    e.threshold = params.get_double("threshold", e.threshold, 0, 1e6);
-    e.level_factor = params.get_double("level-factor", e.level_factor, 1e-6, 1);
-    e.threshold_i2 = params.get_double("chroma-threshold", e.threshold_i2, 0, 1e6);
-    e.threshold_i1 = e.threshold_i2 * e.level_factor;
-    e.threshold_c = e.threshold_i2 * e.level_factor * e.level_factor;
-    e.measure = params.get_choice("measure", "mse", {"mse", "mssim"}) == "mse" ? Measure::mse
-                                                                               : Measure::mssim;
-    const std::string colour = params.get_choice("colour", "auto", {"auto", "ycbcr", "logluv"});
-    o.colour_auto = colour == "auto";
-    if (!o.colour_auto) e.colour = parse_colour_model(colour);
-    e.grid.n_alpha = params.get_int("n-alpha", e.grid.n_alpha, 3, MlvqGrid::kMaxAxis);
-    e.grid.n_beta = params.get_int("n-beta", e.grid.n_beta, 3, MlvqGrid::kMaxAxis);
-    e.grid.n_theta_v = params.get_int("n-theta-v", e.grid.n_theta_v, 2, MlvqGrid::kMaxAxis);
-    e.grid.n_phi_v = params.get_int("n-phi-v", e.grid.n_phi_v, 1, MlvqGrid::kMaxAxis);
-    e.grid.validate();
-    o.first_fraction = params.get_double("first", o.first_fraction, 0, 1);
-    o.second_fraction = params.get_double("second", o.second_fraction, 0, 1);
-    o.growth = params.get_double("growth", o.growth, 1, 1e6);
-    params.check_all_used(kName, parameters());
-    return o;
+    return schema().parse(params);
 }
 
 std::pair<Codebooks, std::vector<TexelIndex>> encode_shared(
@@ -179,7 +186,7 @@ std::pair<Codebooks, std::vector<TexelIndex>> encode_shared(
               "{}: mlvq: empty BTF", factor::source_name(*source));
         hdr = hdr || source->info().hdr;
     }
-    if (options.colour_auto) eo.colour = hdr ? ColourModel::kLogLuv : ColourModel::kYCbCr;
+    eo.colour = options.colour.value_or(hdr ? ColourModel::kLogLuv : ColourModel::kYCbCr);
     Encoder encoder(eo);
     const int64_t n4 = eo.grid.samples(), length = 3 * n4;
     EncodeReport stats;
@@ -546,19 +553,7 @@ Package to_package(const Codebooks& books, const std::vector<TexelIndex>& materi
     Package package;
     auto& h = package.header;
     h["codec"] = kName;
-    const EncoderOptions& e = o.encoder;
-    h["params"] = {{"threshold", e.threshold},
-                   {"level-factor", e.level_factor},
-                   {"chroma-threshold", e.threshold_i2},
-                   {"measure", e.measure == Measure::mse ? "mse" : "mssim"},
-                   {"colour", o.colour_auto ? "auto" : to_string(e.colour)},
-                   {"n-alpha", e.grid.n_alpha},
-                   {"n-beta", e.grid.n_beta},
-                   {"n-theta-v", e.grid.n_theta_v},
-                   {"n-phi-v", e.grid.n_phi_v},
-                   {"first", o.first_fraction},
-                   {"second", o.second_fraction},
-                   {"growth", o.growth}};
+    h["params"] = schema().to_json(o);
     // The first material's extent and sampling describe the package for generic tools.
     const TexelIndex& first = materials.front();
     h["width"] = first.width;
@@ -1422,18 +1417,38 @@ class MlvqCodec final : public Codec {
     std::string_view description() const override {
         return "multi-level vector quantization of apparent BRDFs with importance sampling";
     }
-    std::vector<ParamInfo> params() const override { return mlvq::parameters(); }
+    std::vector<ParamInfo> params() const override { return mlvq::schema().infos(); }
+    void validate(const Params& params) const override { mlvq::schema().parse(params); }
 
     Package encode(const BtfSource& source, const Params& params,
                    Progress& progress) const override {
-        const mlvq::Options o = mlvq::parse_options(params);
+        const mlvq::Options o = mlvq::schema().parse(params);
         auto [books, index] = mlvq::encode(source, o, progress);
         return mlvq::to_package(books, {std::move(index)}, o);
     }
 
+    // Several materials share the code-books (§5.1).
+    bool encodes_several() const override { return true; }
+    Package encode_several(std::span<const BtfSource* const> sources,
+                           std::span<const std::string> names, const Params& params,
+                           Progress& progress) const override {
+        check(names.size() == sources.size(), "mlvq: {} names for {} materials", names.size(),
+              sources.size());
+        const mlvq::Options o = mlvq::schema().parse(params);
+        auto [books, indices] = mlvq::encode_shared(sources, o, progress);
+        for (size_t k = 0; k < indices.size(); ++k) indices[k].name = names[k];
+        return mlvq::to_package(books, indices, o);
+    }
+
+    // A package of several materials opens as its first, as the viewer shows it (open_all()).
     std::unique_ptr<Material> open(const Package& package) const override {
-        std::vector<std::unique_ptr<mlvq::MlvqMaterial>> all = mlvq::open_all(package);
-        return std::move(all.front());
+        return std::move(mlvq::open_all(package).front());
+    }
+
+    std::vector<std::unique_ptr<Material>> open_all(const Package& package) const override {
+        std::vector<std::unique_ptr<Material>> out;
+        for (auto& m : mlvq::open_all(package)) out.push_back(std::move(m));
+        return out;
     }
 };
 

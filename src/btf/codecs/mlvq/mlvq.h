@@ -3,6 +3,7 @@
 /// user documentation, codebooks.h for the model and encoder.h for the quantization.
 
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -22,7 +23,8 @@ class MlvqMaterial;
 
 struct Options {
     EncoderOptions encoder;
-    bool colour_auto = true;        ///< YCbCr for LDR sources, LogLuv for HDR
+    /// The colour model; none: auto, YCbCr for LDR sources and LogLuv for HDR ones.
+    std::optional<ColourModel> colour;
     double first_fraction = 0.01;   ///< training step 1: Halton-sampled texels at the threshold
     double second_fraction = 0.04;  ///< training step 2, thresholds × growth
     double growth = 2.5;

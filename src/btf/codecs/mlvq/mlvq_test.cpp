@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "btf/codecs/fmf/fmf.h"
 #include "btf/codecs/material_source.h"
 #include "btf/codecs/mlvq/small_grid_test.h"
 #include "btf/core/btf_lookup.h"
@@ -294,6 +295,20 @@ TEST(Mlvq, SharedCodeBooksDecodeEachMaterial) {
     Package prefix = shared;
     prefix.sections.resize(2);
     EXPECT_EQ(open_all(prefix).size(), 1u);
+    EXPECT_EQ(mlvq_codec().open(prefix)->width(), leather().width());
+
+    // Through the codec interface: encode_several() writes the same sections (the header adds
+    // the names), open_all() opens every material, and open() the first.
+    const std::vector<std::string> names = {"a", "b", "c"};
+    const Package again = mlvq_codec().encode_several(sources, names, small_grid());
+    ASSERT_EQ(again.sections.size(), shared.sections.size());
+    for (size_t k = 0; k < again.sections.size(); ++k)
+        EXPECT_EQ(again.sections[k].data, shared.sections[k].data) << again.sections[k].name;
+    EXPECT_EQ(again.header.at("materials")[1].at("name"), "b");
+    EXPECT_EQ(mlvq_codec().open_all(again).size(), 3u);
+    EXPECT_EQ(mlvq_codec().open(again)->width(), leather().width());  // the first
+    EXPECT_EQ(test::error_of([&] { fmf_codec().encode_several(sources, names, small_grid()); }),
+              "codec fmf compresses one input; several inputs share code-books only with mlvq");
 }
 
 // The evaluator's decoded code-books (decoded.h) hold the chain of equation 4: through the fused

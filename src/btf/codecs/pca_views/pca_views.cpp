@@ -25,18 +25,9 @@
 /// 2011): the source is read 2 + 2·power-iterations times, a view at a time, and memory holds
 /// only the factors and one view's images.
 ///
-/// Parameters:
-///   views-per-group  k, views per group (default 1; ≥ number of views: one group)
-///   components       C, principal components per group (default 8); with decorrelated colour
-///                    the C components of a group are shared by its three planes, allocated by
-///                    singular value (the planes' basis is orthonormal)
-///   colour           rgb (the three channels inside each row set, one plane) or decorrelated
-///                    (three luminance/chroma planes factorized separately); default rgb
-///   log              factorize log(value + 0.001) (for HDR data); default false
-///   quantize         f32, f16 or u8 storage of the factors; default f16
-///   power-iterations randomized SVD power iterations (default 2)
-///   oversampling     extra random vectors of the range finder (default 10)
-///   seed             random seed of the range finder (default 1)
+/// Parameters: schema() below declares each once (the default is the Options initializer in
+/// pca_views.h); `btf codecs` lists them. With decorrelated colour, a group's C components are
+/// shared by its three planes, allocated by singular value (the planes' basis is orthonormal).
 ///
 /// Package: the shared factor model (factor/model.h): view groups in the header, the row means,
 /// then the components of all groups in decreasing energy, so a prefix of the package is a
@@ -49,6 +40,7 @@
 #include <numeric>
 #include <tuple>
 
+#include "btf/codecs/factor/params.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -61,24 +53,21 @@ constexpr std::string_view kName = "pca-views";
 // swaps converge in a handful of sweeps on real samplings).
 constexpr int kMaxSwapSweeps = 100;
 
-const std::vector<ParamInfo>& param_infos() {
-    static const std::vector<ParamInfo> infos = [] {
-        std::vector<ParamInfo> out = {
-            {"views-per-group", "1",
-             "k: neighbouring views factorized together (1: PCA-RF; >= number of views: one "
-             "group, PCA-BTF)"},
-            {"components", "8",
-             "principal components per view group (shared by the planes when decorrelated)"},
-            {"colour", "rgb", "rgb (colour inside the rows) or decorrelated (luminance/chroma)"},
-            {"log", "false", "factorize log(value + 0.001) (dynamic range reduction for HDR)"},
-        };
-        for (ParamInfo& info : factor::quantization_params()) out.push_back(std::move(info));
-        out.push_back({"power-iterations", "2", "power iterations of the randomized SVD"});
-        out.push_back({"oversampling", "10", "extra random vectors of the randomized SVD"});
-        out.push_back({"seed", "1", "random seed of the randomized SVD"});
-        return out;
+const ParamSchema<Options>& schema() {
+    static const ParamSchema<Options> schema = [] {
+        ParamSchema<Options> s{std::string(kName)};
+        s.integer("views-per-group", &Options::views_per_group, 1, 1 << 20,
+                  "k: neighbouring views factorized together (1: PCA-RF; >= number of views: one "
+                  "group, PCA-BTF)")
+            .integer("components", &Options::components, 1, 1 << 16,
+                     "principal components per view group (shared by the planes when "
+                     "decorrelated)");
+        factor::declare_colour(s, {factor::ColourBasis::kRgb, factor::ColourBasis::kDecorrelated},
+                               "rgb (colour inside the rows) or decorrelated (luminance/chroma)");
+        factor::declare_storage_and_svd(s);
+        return s;
     }();
-    return infos;
+    return schema;
 }
 
 Vec3 unit(const Vec3& v) {
@@ -92,13 +81,14 @@ class PcaViewsCodec final : public factor::FactorCodec {
     std::string_view description() const override {
         return "PCA over groups of k neighbouring views (k=1: PCA-RF, k=all: PCA-BTF)";
     }
-    std::vector<ParamInfo> params() const override { return param_infos(); }
+    std::vector<ParamInfo> params() const override { return schema().infos(); }
+    void validate(const Params& params) const override { schema().parse(params); }
 
   protected:
     Result factorize(const BtfSource& source, const Params& params,
                      Progress& progress) const override {
-        const Options options = parse_options(params);
-        return {pca_views::factorize(source, options, progress), options_json(options),
+        const Options options = schema().parse(params);
+        return {pca_views::factorize(source, options, progress), schema().to_json(options),
                 options.quantization};
     }
 };
@@ -106,30 +96,7 @@ class PcaViewsCodec final : public factor::FactorCodec {
 }  // namespace
 
 Options parse_options(const Params& params) {
-    Options options;
-    options.views_per_group = params.get_int("views-per-group", 1, 1, 1 << 20);
-    options.components = params.get_int("components", 8, 1, 1 << 16);
-    options.colour.basis =
-        factor::parse_colour_basis(params.get_choice("colour", "rgb", {"rgb", "decorrelated"}));
-    options.colour.log = params.get_bool("log", false);
-    options.quantization =
-        factor::parse_quantization(params.get_choice("quantize", "f16", {"f32", "f16", "u8"}));
-    options.power_iterations = params.get_int("power-iterations", 2, 0, 64);
-    options.oversampling = params.get_int("oversampling", 10, 0, 4096);
-    options.seed = static_cast<uint64_t>(params.get_int("seed", 1, 0, 1 << 30));
-    params.check_all_used(kName, param_infos());
-    return options;
-}
-
-nlohmann::json options_json(const Options& options) {
-    return {{"views-per-group", options.views_per_group},
-            {"components", options.components},
-            {"colour", factor::to_string(options.colour.basis)},
-            {"log", options.colour.log},
-            {"quantize", factor::to_string(options.quantization)},
-            {"power-iterations", options.power_iterations},
-            {"oversampling", options.oversampling},
-            {"seed", options.seed}};
+    return schema().parse(params);
 }
 
 std::vector<std::vector<int>> group_views(const DirectionSet& views, int views_per_group) {
@@ -215,13 +182,8 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
     model.groups = group_views(source.sampling().views, options.views_per_group);
 
     const factor::SourceRows rows(source, options.colour, model.groups);
-    factor::SvdOptions svd_options;
-    svd_options.rank = options.components;
-    svd_options.oversampling = options.oversampling;
-    svd_options.power_iterations = options.power_iterations;
-    svd_options.subtract_mean = true;
-    svd_options.seed = options.seed;
-    const std::vector<factor::Svd> svds = factor::randomized_svd(rows, svd_options, progress);
+    const std::vector<factor::Svd> svds = factor::randomized_svd(
+        rows, factor::svd_options(options, options.components, true), progress);
 
     const int planes = options.colour.planes();
     const int groups = static_cast<int>(model.groups.size());

@@ -40,8 +40,5 @@ std::vector<std::vector<int>> group_views(const DirectionSet& views, int views_p
 factor::Model factorize(const BtfSource& source, const Options& options,
                         Progress& progress = Progress::none());
 
-/// The package header's "params": the options as resolved (defaults filled in).
-nlohmann::json options_json(const Options& options);
-
 }  // namespace pca_views
 }  // namespace btf

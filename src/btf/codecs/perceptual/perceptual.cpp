@@ -41,18 +41,8 @@
 // Decoding: planes interpolate like every factor model (bilinear in space, barycentric over
 // views and lights) and convert to linear RGB by btf::lab_to_rgb after interpolation.
 //
-// Parameters (btf codecs perceptual):
-//   components=32       total over the three planes
-//   resolution=10       texels per degree of visual angle, [1, 1000] (the paper's range 2–100)
-//   speed=100           angular speed ω in degrees per second, [1, 10000] (the paper's 10–1000)
-//   mean=false          subtract the mean ABRDF before filtering (stored unfiltered)
-//   csf=true            false: no filters, plain factorization of the CIELab planes (the
-//                       unweighted baseline: same colour space, allocation and package)
-//   quality=1           base quality bq of high-frequency omission, [0, 1]; 1: none
-//   max-level=3         coarsest eigen-texture level omission may choose (1/2^level per axis)
-//   max-angular-level=2 coarsest eigen-ABRDF level (⌈n / 2^level⌉ views and lights)
-//   oversampling=10, power-iterations=3, seed=1   randomized SVD settings
-//   quantize=f16        factor storage: f32, f16, u8
+// Parameters: schema() below declares each once (the default is the Options initializer in
+// perceptual.h); `btf codecs` lists them.
 
 #include "btf/codecs/perceptual/perceptual.h"
 
@@ -63,6 +53,7 @@
 #include <limits>
 #include <memory>
 
+#include "btf/codecs/factor/params.h"
 #include "btf/codecs/perceptual/resample.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
@@ -82,51 +73,41 @@ class Identity final : public factor::Transforms {
     void right(int, factor::Matrix&, bool) const override {}
 };
 
-std::vector<ParamInfo> parameters() {
-    std::vector<ParamInfo> p = {
-        {"components", "32",
-         "components kept in total over the L*, a*, b* planes (allocated by perceptual energy)"},
-        {"resolution", "10",
-         "viewing: texels per degree of visual angle, in [1, 1000] (paper's range 2-100)"},
-        {"speed", "100",
-         "viewing: angular speed in degrees per second, in [1, 10000] (paper's range 10-1000)"},
-        {"mean", "false", "subtract the mean ABRDF before filtering (stored unfiltered)"},
-        {"csf", "true",
-         "weight by the CSF filters; false: plain factorization of the CIELab planes (baseline)"},
-        {"quality", "1",
-         "base quality bq in [0, 1] of high-frequency omission: 1 keeps every eigen-texture at "
-         "full resolution, lower values store more of them at reduced resolution"},
-        {"max-level", "3",
-         "coarsest eigen-texture resolution omission may choose: 1/2^level per axis, in [0, 8]"},
-        {"max-angular-level", "2",
-         "coarsest eigen-ABRDF resolution omission may choose: 1/2^level of the views and of the "
-         "lights, in [0, 8]"},
-        {"oversampling", "10", "extra random vectors of the randomized SVD"},
-        {"power-iterations", "3", "power iterations of the randomized SVD (2 passes each)"},
-        {"seed", "1", "random seed"},
-    };
-    for (ParamInfo& q : factor::quantization_params()) p.push_back(std::move(q));
-    return p;
+const ParamSchema<Options>& schema() {
+    static const ParamSchema<Options> schema = [] {
+        ParamSchema<Options> s{std::string(kName)};
+        s.integer("components", &Options::components, 1, 4096,
+                  "components kept in total over the L*, a*, b* planes (allocated by perceptual "
+                  "energy)")
+            .number(
+                "resolution", [](auto& o) -> auto& { return o.viewing.resolution; }, 1, 1000,
+                "viewing: texels per degree of visual angle (paper's range 2-100)")
+            .number(
+                "speed", [](auto& o) -> auto& { return o.viewing.speed; }, 1, 10000,
+                "viewing: angular speed in degrees per second (paper's range 10-1000)")
+            .flag("mean", &Options::subtract_mean,
+                  "subtract the mean ABRDF before filtering (stored unfiltered)")
+            .flag("csf", &Options::csf,
+                  "weight by the CSF filters; false: plain factorization of the CIELab planes "
+                  "(baseline)")
+            .number("quality", &Options::quality, 0, 1,
+                    "base quality bq of high-frequency omission: 1 keeps every eigen-texture at "
+                    "full resolution, lower values store more of them at reduced resolution")
+            .integer("max-level", &Options::max_level, 0, 8,
+                     "coarsest eigen-texture resolution omission may choose: 1/2^level per axis")
+            .integer("max-angular-level", &Options::max_angular_level, 0, 8,
+                     "coarsest eigen-ABRDF resolution omission may choose: 1/2^level of the views "
+                     "and of the lights");
+        factor::declare_storage_and_svd(s);
+        return s;
+    }();
+    return schema;
 }
 
 }  // namespace
 
 Options parse_options(const Params& params) {
-    Options o;
-    o.components = params.get_int("components", o.components, 1, 4096);
-    o.viewing.resolution = params.get_double("resolution", o.viewing.resolution, 1, 1000);
-    o.viewing.speed = params.get_double("speed", o.viewing.speed, 1, 10000);
-    o.subtract_mean = params.get_bool("mean", false);
-    o.csf = params.get_bool("csf", true);
-    o.quality = params.get_double("quality", o.quality, 0, 1);
-    o.max_level = params.get_int("max-level", o.max_level, 0, 8);
-    o.max_angular_level = params.get_int("max-angular-level", o.max_angular_level, 0, 8);
-    o.oversampling = params.get_int("oversampling", o.oversampling, 0, 1024);
-    o.power_iterations = params.get_int("power-iterations", o.power_iterations, 0, 64);
-    o.seed = static_cast<uint64_t>(params.get_int("seed", 1, 0, 1 << 30));
-    o.quantization = factor::parse_quantization(params.get_string("quantize", "f16"));
-    params.check_all_used(kName, parameters());
-    return o;
+    return schema().parse(params);
 }
 
 namespace {
@@ -290,12 +271,8 @@ factor::Model factorize(const BtfSource& source, const Options& options, Progres
     const factor::Transforms& transforms =
         options.csf ? static_cast<const factor::Transforms&>(csf) : identity;
 
-    factor::SvdOptions svd;
-    svd.rank = options.components;
-    svd.oversampling = options.oversampling;
-    svd.power_iterations = options.power_iterations;
-    svd.subtract_mean = options.subtract_mean;
-    svd.seed = options.seed;
+    factor::SvdOptions svd =
+        factor::svd_options(options, options.components, options.subtract_mean);
     svd.transforms = &transforms;
     const std::vector<factor::Svd> planes = factor::randomized_svd(rows, svd, progress);
 
@@ -394,26 +371,16 @@ class PerceptualCodec final : public factor::FactorCodec {
     std::string_view description() const override {
         return "factorization in CIELab weighted by the eye's contrast sensitivity (BTF-CIELab)";
     }
-    std::vector<ParamInfo> params() const override { return perceptual::parameters(); }
+    std::vector<ParamInfo> params() const override { return perceptual::schema().infos(); }
+    void validate(const Params& params) const override { perceptual::schema().parse(params); }
 
   protected:
     Result factorize(const BtfSource& source, const Params& params,
                      Progress& progress) const override {
-        const perceptual::Options o = perceptual::parse_options(params);
+        const perceptual::Options o = perceptual::schema().parse(params);
         Result result;
         result.model = perceptual::factorize(source, o, progress);
-        result.params = {{"components", o.components},
-                         {"resolution", o.viewing.resolution},
-                         {"speed", o.viewing.speed},
-                         {"mean", o.subtract_mean},
-                         {"csf", o.csf},
-                         {"quality", o.quality},
-                         {"max-level", o.max_level},
-                         {"max-angular-level", o.max_angular_level},
-                         {"oversampling", o.oversampling},
-                         {"power-iterations", o.power_iterations},
-                         {"seed", o.seed},
-                         {"quantize", factor::to_string(o.quantization)}};
+        result.params = perceptual::schema().to_json(o);
         result.quantization = o.quantization;
         return result;
     }

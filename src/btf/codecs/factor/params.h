@@ -1,0 +1,67 @@
+#pragma once
+/// The parameters the factorization codecs share (fmf, pca-views, lpca, perceptual), declared
+/// once here for all of them. A codec's Options holds them in members of these names:
+///   colour (ColourHandling), quantization, oversampling, power_iterations, seed;
+/// each codec's own default (power-iterations=2 for pca-views and lpca, 3 for fmf and perceptual)
+/// is its Options initializer, as for every parameter (codecs/param_schema.h).
+
+#include <vector>
+
+#include "btf/codecs/factor/model.h"
+#include "btf/codecs/factor/rsvd.h"
+#include "btf/codecs/param_schema.h"
+
+namespace btf::factor {
+
+/// colour=… over `bases` (the default is the Options initializer's), log=… and log-eps=…, and the
+/// check that log is not combined with model11.
+template <class Options>
+void declare_colour(ParamSchema<Options>& schema, const std::vector<ColourBasis>& bases,
+                    std::string colour_help) {
+    std::vector<std::pair<std::string, ColourBasis>> choices;
+    for (ColourBasis b : bases) choices.emplace_back(to_string(b), b);
+    schema
+        .choice(
+            "colour", [](auto& o) -> auto& { return o.colour.basis; }, std::move(choices),
+            std::move(colour_help))
+        .flag(
+            "log", [](auto& o) -> auto& { return o.colour.log; },
+            "factorize log(value + log-eps) (dynamic-range reduction for HDR sources)")
+        .number(
+            "log-eps", [](auto& o) -> auto& { return o.colour.log_eps; }, 1e-12, 1e3,
+            "offset of the log");
+    schema.then([](Options& o) {
+        if (o.colour.log && o.colour.basis == ColourBasis::kUboModel11)
+            fail("parameter log: model11 is logarithmic already");
+    });
+}
+
+/// quantize=… (factor storage) and the randomized SVD's oversampling, power-iterations, seed.
+template <class Options>
+void declare_storage_and_svd(ParamSchema<Options>& schema) {
+    schema
+        .choice("quantize", &Options::quantization,
+                std::vector<std::pair<std::string, Quantization>>{{"f32", Quantization::kF32},
+                                                                  {"f16", Quantization::kF16},
+                                                                  {"u8", Quantization::kU8}},
+                "factor storage: f32, f16 or u8 (8 bits with per-component scale)")
+        .integer("oversampling", &Options::oversampling, 0, 1024,
+                 "extra random vectors of the randomized SVD")
+        .integer("power-iterations", &Options::power_iterations, 0, 64,
+                 "power iterations of the randomized SVD (2 passes over the source each)")
+        .integer("seed", &Options::seed, 0, 1 << 30, "random seed of the randomized SVD");
+}
+
+/// The randomized SVD's settings from a codec's options: rank and centring from the caller.
+template <class Options>
+SvdOptions svd_options(const Options& options, int rank, bool subtract_mean) {
+    SvdOptions out;
+    out.rank = rank;
+    out.oversampling = options.oversampling;
+    out.power_iterations = options.power_iterations;
+    out.subtract_mean = subtract_mean;
+    out.seed = options.seed;
+    return out;
+}
+
+}  // namespace btf::factor
