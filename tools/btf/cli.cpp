@@ -207,18 +207,9 @@ void add_raw_output_options(CLI::App& command, RawOutputOptions& options) {
 
 void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
                const RawOutputOptions& options, Progress& progress) {
-    if (kind == OutputKind::kHdf5) {
-        h5::WriteOptions h5_options;
-        h5_options.half = !options.use_float;
-        h5_options.deflate = options.deflate;
-        h5::write(source, output, h5_options, progress);
-    } else if (kind == OutputKind::kFolder) {
-        std::string format = options.format;
-        if (format.empty()) format = source.info().hdr ? "exr" : "png";
-        utia::write(source, output, format, progress);
-    } else {
+    if (kind != OutputKind::kHdf5 && kind != OutputKind::kFolder)
         fail("{}: not an HDF5 file or UTIA folder name", output);
-    }
+    write_source(source, output, {!options.use_float, options.deflate, options.format}, progress);
 }
 
 fs::path cache_folder() {

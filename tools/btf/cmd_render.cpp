@@ -28,37 +28,23 @@ struct RenderArgs {
     std::vector<std::string> compare;
 };
 
-struct RenderSetup {
-    render::RenderOptions options;
-    double exposure = 0;
-};
+using render::RenderSetup;
 
 // The scene's "render" block with the command line's overrides applied.
 RenderSetup setup_render(const RenderArgs& args, render::LoadedScene& loaded) {
-    render::RenderOptions options = loaded.settings.options;
-    const std::string integrator =
-        args.integrator.empty() ? loaded.settings.integrator : args.integrator;
-    if (integrator == "direct") {
-        if (args.max_depth > 0) fail("--max-depth applies to the path integrator");
-        options.integrator.max_depth = 1;
-    } else {
-        if (loaded.settings.integrator != "path") options.integrator.max_depth = 8;
-        if (args.max_depth > 0) options.integrator.max_depth = args.max_depth;
-    }
-    if (args.spp >= 0) options.spp = args.spp;
-    if (args.time >= 0) options.time_limit = args.time;
-    if (args.spp == 0 && options.time_limit <= 0) fail("--spp 0 needs --time");
-    if (args.seed >= 0) options.seed = uint64_t(args.seed);
-    if (!args.filter.empty()) options.integrator.filter = parse_filter(args.filter, "--filter");
-    if (!args.size.empty()) {
-        const auto [w, h] = parse_pair(args.size, "--size");
-        if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
-            fail("--size {}: width and height must be 1 to 16384", args.size);
-        loaded.scene.camera.width = w;
-        loaded.scene.camera.height = h;
-    }
-    options.aovs = args.aovs;
-    return {options, std::isnan(args.exposure) ? loaded.settings.exposure : args.exposure};
+    render::RenderOverrides o;
+    o.integrator = args.integrator;
+    o.spp = args.spp;
+    o.max_depth = args.max_depth;
+    o.time_limit = args.time;
+    o.seed = args.seed;
+    o.filter = args.filter;
+    if (!args.size.empty()) std::tie(o.width, o.height) = parse_pair(args.size, "--size");
+    if (!args.size.empty() && (o.width <= 0 || o.height <= 0))
+        fail("--size {}: width and height must be 1 to 16384", args.size);
+    o.aovs = args.aovs;
+    o.exposure = args.exposure;
+    return render::apply_overrides(loaded, o);
 }
 
 void print_result(const std::string& name, const render::RenderResult& result) {

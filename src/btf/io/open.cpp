@@ -1,5 +1,7 @@
 #include "btf/io/open.h"
 
+#include <cctype>
+
 #include "btf/io/h5.h"
 #include "btf/io/ubo2003.h"
 #include "btf/io/ubo2014.h"
@@ -33,6 +35,28 @@ std::unique_ptr<BtfSource> open_source(const std::filesystem::path& path,
         "{}: not a BTF format btfkit reads (UBO2003 archive or folder, UBO2014 .btf, UTIA image "
         "set, btfkit HDF5)",
         path.string());
+}
+
+void write_source(const BtfSource& source, const std::filesystem::path& output,
+                  const RawWriteOptions& options, Progress& progress) {
+    std::string extension = output.extension().string();
+    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (extension == ".h5" || extension == ".hdf5") {
+        h5::WriteOptions h5_options;
+        h5_options.half = options.half;
+        h5_options.deflate = options.deflate;
+        h5::write(source, output, h5_options, progress);
+        return;
+    }
+    if (!extension.empty())
+        fail(
+            "{}: unknown output type '{}': name a .h5 file, or a folder without an extension for "
+            "a UTIA image set",
+            output.string(), extension);
+    const std::string format = !options.format.empty() ? options.format
+                               : source.info().hdr     ? "exr"
+                                                       : "png";
+    utia::write(source, output, format, progress);
 }
 
 }  // namespace btf

@@ -10,6 +10,7 @@
 
 #include "btf/core/image.h"
 #include "btf/io/source.h"
+#include "btf/util/progress.h"
 
 namespace btf {
 
@@ -36,5 +37,18 @@ const std::vector<Reader>& readers();
 /// if the path does not exist or no reader recognizes it.
 std::unique_ptr<BtfSource> open_source(const std::filesystem::path& path,
                                        const OpenOptions& options = {});
+
+/// How write_source() stores values.
+struct RawWriteOptions {
+    bool half = true;  ///< HDF5: IEEE half floats rather than float32
+    int deflate = 0;   ///< HDF5: 0 = none, 1–9 = deflate level
+    /// UTIA image sets: "png" or "exr"; empty = exr for HDR sources, png otherwise.
+    std::string format;
+};
+
+/// Writes `source` raw: btfkit HDF5 when `output` ends in .h5 or .hdf5, otherwise a UTIA image set
+/// in the new folder `output`. Nothing is left at `output` when it fails or is cancelled.
+void write_source(const BtfSource& source, const std::filesystem::path& output,
+                  const RawWriteOptions& options = {}, Progress& progress = Progress::none());
 
 }  // namespace btf

@@ -383,4 +383,31 @@ LoadedScene load_scene(const std::filesystem::path& path, const LoadOptions& opt
     return parse_scene(text.str(), path.string(), path.parent_path(), options);
 }
 
+RenderSetup apply_overrides(LoadedScene& loaded, const RenderOverrides& o) {
+    RenderOptions options = loaded.settings.options;
+    const std::string integrator = o.integrator.empty() ? loaded.settings.integrator : o.integrator;
+    if (integrator == "direct") {
+        if (o.max_depth > 0) fail("max-depth applies to the path integrator");
+        options.integrator.max_depth = 1;
+    } else if (integrator == "path") {
+        if (loaded.settings.integrator != "path") options.integrator.max_depth = 8;
+        if (o.max_depth > 0) options.integrator.max_depth = o.max_depth;
+    } else {
+        fail("integrator '{}': expected path or direct", integrator);
+    }
+    if (o.spp >= 0) options.spp = o.spp;
+    if (o.time_limit >= 0) options.time_limit = o.time_limit;
+    if (o.spp == 0 && options.time_limit <= 0) fail("0 samples per pixel needs a time limit");
+    if (o.seed >= 0) options.seed = uint64_t(o.seed);
+    if (!o.filter.empty()) options.integrator.filter = parse_filter(o.filter, "filter");
+    if (o.width != 0 || o.height != 0) {
+        if (o.width <= 0 || o.height <= 0 || o.width > 16384 || o.height > 16384)
+            fail("image size {} × {}: width and height must be 1 to 16384", o.width, o.height);
+        loaded.scene.camera.width = o.width;
+        loaded.scene.camera.height = o.height;
+    }
+    options.aovs = o.aovs;
+    return {options, std::isnan(o.exposure) ? loaded.settings.exposure : o.exposure};
+}
+
 }  // namespace btf::render
