@@ -6,10 +6,15 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <thread>
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/material_source.h"
@@ -17,6 +22,7 @@
 #include "btf/io/open.h"
 #include "btf/io/package.h"
 #include "btf/quality/measure.h"
+#include "btf/render/scene_file.h"
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
@@ -120,7 +126,7 @@ void check_index(int index, int count, const char* what) {
 
 // Keyword arguments as codec parameters: their text as `btf compress -p key=value` takes it
 // (True/False as true/false), with '_' in a name read as '-' (power_iterations).
-btf::Params params_of(const py::kwargs& kwargs) {
+btf::Params params_of(const py::dict& kwargs) {
     btf::Params params;
     for (const auto& [key, value] : kwargs) {
         std::string name = py::str(key);
@@ -131,6 +137,68 @@ btf::Params params_of(const py::kwargs& kwargs) {
         params.set(name, text);
     }
     return params;
+}
+
+// Runs work(progress) on a worker thread while the calling thread waits with the GIL released,
+// waking every 50 ms to hold the GIL briefly: Python's signal handlers run then (Ctrl-C cancels
+// the work, which unwinds and leaves no partial output, and KeyboardInterrupt is raised), and
+// `callback(stage, done, total)` is called, on this thread, when the progress has moved. An
+// exception the callback raises cancels the work and is raised in its place.
+void interruptible(const py::object& callback, const std::function<void(btf::Progress&)>& work) {
+    struct Shared {
+        std::mutex mutex;
+        std::condition_variable finished;
+        bool done = false, moved = false;
+        std::string stage;
+        uint64_t units = 0, total = 0;
+        std::exception_ptr error;
+    } shared;
+    btf::Progress progress([&](std::string_view stage, uint64_t done, uint64_t total) {
+        const std::lock_guard lock(shared.mutex);
+        shared.stage = stage;
+        shared.units = done;
+        shared.total = total;
+        shared.moved = true;
+    });
+    std::thread worker([&] {
+        try {
+            work(progress);
+        } catch (...) {
+            shared.error = std::current_exception();
+        }
+        const std::lock_guard lock(shared.mutex);
+        shared.done = true;
+        shared.finished.notify_all();
+    });
+    std::optional<py::error_already_set> raised;  // by a signal handler or the callback
+    for (bool done = false; !done;) {
+        std::string stage;
+        uint64_t units = 0, total = 0;
+        bool moved = false;
+        {
+            py::gil_scoped_release release;
+            std::unique_lock lock(shared.mutex);
+            shared.finished.wait_for(lock, std::chrono::milliseconds(50),
+                                     [&] { return shared.done; });
+            done = shared.done;
+            std::swap(moved, shared.moved);
+            stage = shared.stage, units = shared.units, total = shared.total;
+        }
+        if (raised) continue;
+        try {
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            if (moved && !callback.is_none()) callback(stage, units, total);
+        } catch (py::error_already_set& e) {
+            raised.emplace(std::move(e));
+            progress.cancel();
+        }
+    }
+    {
+        py::gil_scoped_release release;
+        worker.join();
+    }
+    if (raised) throw std::move(*raised);
+    if (shared.error) std::rethrow_exception(shared.error);
 }
 
 }  // namespace
@@ -232,14 +300,76 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
 
     m.def(
         "_compress",
-        [](const std::shared_ptr<BtfSource>& source, const std::filesystem::path& out,
-           const std::string& codec, const py::kwargs& kwargs) {
+        [](const std::vector<std::shared_ptr<BtfSource>>& sources,
+           const std::vector<std::string>& names, const std::filesystem::path& out,
+           const std::string& codec_name, const py::dict& kwargs, const py::object& callback) {
             const btf::Params params = params_of(kwargs);
-            py::gil_scoped_release release;
-            btf::Package package = btf::find_codec(codec).encode(*source, params);
-            btf::write_package(out, package);
+            const btf::Codec& codec = btf::find_codec(codec_name);
+            codec.validate(params);
+            std::vector<const BtfSource*> list;
+            for (const auto& s : sources) list.push_back(s.get());
+            interruptible(callback, [&](btf::Progress& progress) {
+                btf::Package package = codec.encode_several(list, names, params, progress);
+                btf::write_package(out, package, {}, progress);
+            });
         },
-        py::arg("source"), py::arg("out"), py::arg("codec"));
+        py::arg("sources"), py::arg("names"), py::arg("out"), py::arg("codec"), py::arg("params"),
+        py::arg("progress"));
+
+    m.def(
+        "_decompress",
+        [](const std::filesystem::path& package, const std::filesystem::path& out, bool half,
+           int deflate, const std::string& format, const py::object& callback) {
+            if (deflate < 0 || deflate > 9) throw py::value_error("deflate: must be 0 to 9");
+            if (!format.empty() && format != "png" && format != "exr")
+                throw py::value_error("format: expected 'png' or 'exr'");
+            interruptible(callback, [&](btf::Progress& progress) {
+                const auto source = btf::open_package_source(package);
+                btf::write_source(*source, out, {half, deflate, format}, progress);
+            });
+        },
+        py::arg("package"), py::arg("out"), py::arg("half"), py::arg("deflate"), py::arg("format"),
+        py::arg("progress"));
+
+    m.def(
+        "_render",
+        [](const std::string& scene, const std::string& json, const std::string& base,
+           const std::optional<std::filesystem::path>& material, const std::string& sampling,
+           const btf::render::RenderOverrides& overrides, const py::object& callback) {
+            btf::render::LoadOptions load;
+            if (sampling == "cosine")
+                load.sampling = btf::render::SamplingMode::kCosine;
+            else if (sampling == "generic")
+                load.sampling = btf::render::SamplingMode::kGeneric;
+            else if (sampling != "material")
+                throw py::value_error("sampling: expected 'material', 'generic' or 'cosine'");
+            btf::render::RenderResult result;
+            interruptible(callback, [&](btf::Progress& progress) {
+                if (material) load.btf_override = btf::render::open_material_file(*material);
+                btf::render::LoadedScene loaded =
+                    json.empty() ? btf::render::load_scene(scene, load)
+                                 : btf::render::parse_scene(json, scene, base, load);
+                if (material && loaded.btf_objects == 0)
+                    btf::fail("{}: material needs an object with a \"btf\" material", scene);
+                const btf::render::RenderSetup setup =
+                    btf::render::apply_overrides(loaded, overrides);
+                result = btf::render::render(loaded.scene, setup.options, progress);
+            });
+            return to_array(result.color);
+        },
+        py::arg("scene"), py::arg("json"), py::arg("base"), py::arg("material"),
+        py::arg("sampling"), py::arg("overrides"), py::arg("progress"));
+
+    py::class_<btf::render::RenderOverrides>(m, "_RenderOverrides")
+        .def(py::init<>())
+        .def_readwrite("integrator", &btf::render::RenderOverrides::integrator)
+        .def_readwrite("spp", &btf::render::RenderOverrides::spp)
+        .def_readwrite("max_depth", &btf::render::RenderOverrides::max_depth)
+        .def_readwrite("time_limit", &btf::render::RenderOverrides::time_limit)
+        .def_readwrite("seed", &btf::render::RenderOverrides::seed)
+        .def_readwrite("filter", &btf::render::RenderOverrides::filter)
+        .def_readwrite("width", &btf::render::RenderOverrides::width)
+        .def_readwrite("height", &btf::render::RenderOverrides::height);
 
     py::class_<Material, std::shared_ptr<Material>>(
         m, "Material", R"(A random-access BTF material (a package, or a UBO2014 file).
@@ -396,20 +526,20 @@ not be unit length; the batches run on every core with the GIL released.)")
     m.def(
         "_quality",
         [](const std::shared_ptr<BtfSource>& reference, const std::shared_ptr<BtfSource>& test,
-           const std::string& metrics, bool cos_weight, double peak) {
+           const std::string& metrics, bool cos_weight, double peak, const py::object& callback) {
             btf::quality::QualityRequest request = btf::quality::QualityRequest::parse(metrics);
             request.compare.cos_weight = cos_weight;
             request.compare.peak = peak;
             std::string json;
-            {
-                py::gil_scoped_release release;
-                json =
-                    btf::quality::to_json(btf::quality::measure(*reference, *test, request)).dump();
-            }
+            interruptible(callback, [&](btf::Progress& progress) {
+                json = btf::quality::to_json(
+                           btf::quality::measure(*reference, *test, request, progress))
+                           .dump();
+            });
             return json;
         },
         py::arg("reference"), py::arg("test"), py::arg("metrics"), py::arg("cos_weight"),
-        py::arg("peak"));
+        py::arg("peak"), py::arg("progress"));
 
     m.def(
         "open_material",
@@ -418,5 +548,22 @@ not be unit length; the batches run on every core with the GIL released.)")
             return btf::open_material(path);
         },
         py::arg("path"),
-        "Opens a btfkit package (any codec) or a UBO2014 .btf file as a material.");
+        "Opens a btfkit package (any codec) or a UBO2014 .btf file as a material (a package of "
+        "several materials: the first).");
+
+    m.def(
+        "open_materials",
+        [](const std::filesystem::path& path) {
+            std::vector<std::unique_ptr<Material>> all;
+            {
+                py::gil_scoped_release release;
+                all = btf::open_materials(path);
+            }
+            std::vector<std::shared_ptr<Material>> out;
+            for (auto& material : all) out.push_back(std::move(material));
+            return out;
+        },
+        py::arg("path"),
+        "Every material of a package: several for one that compress() wrote from a list of "
+        "sources (mlvq's shared code-books), one otherwise.");
 }

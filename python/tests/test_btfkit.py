@@ -161,3 +161,34 @@ def test_eval_sample_reads_exact_samples(source, package):
     np.testing.assert_allclose(got, expected, rtol=2e-2, atol=2e-3)
     with pytest.raises(ValueError, match="row 1: view 81 is out of range"):
         m.eval_sample([[0, 0, 0, 0], [0, 0, 81, 0]])
+
+
+def test_the_type_stubs_describe_the_module():
+    import ast
+    import inspect
+    import pathlib
+    stub = pathlib.Path(bk.__file__).with_name("__init__.pyi")
+    assert stub.exists() and stub.with_name("py.typed").exists()
+    tree = ast.parse(stub.read_text())
+    top = {n.name: n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+    assert set(bk.__all__) == set(top), set(bk.__all__) ^ set(top)
+    for name in ("Source", "Material"):
+        declared = {n.name for n in top[name].body if isinstance(n, ast.FunctionDef)}
+        public = {a for a in dir(getattr(bk, name)) if not a.startswith("_")}
+        assert declared == public, (name, declared ^ public)
+    # The pure-Python functions' parameters are the stubs' (the native ones have no signature).
+    for name, node in top.items():
+        obj = getattr(bk, name)
+        if isinstance(node, ast.FunctionDef) and inspect.isfunction(obj):
+            stub_args = [a.arg for a in node.args.args + node.args.kwonlyargs]
+            real = [p.name for p in inspect.signature(obj).parameters.values()
+                    if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)]
+            assert stub_args == real, name
+
+
+def test_help_of_compress_lists_every_codec_parameter():
+    doc = bk.compress.__doc__
+    for name, (_, params) in bk.codecs().items():
+        assert f"\n{name}: " in doc
+        for key, p in params.items():
+            assert f"    {key.replace('-', '_')}={p['default']}" in doc, (name, key)

@@ -149,6 +149,24 @@ std::unique_ptr<Material> open_material(const Package& package) {
     return find_codec(package.codec()).open(package);
 }
 
+std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path) {
+    std::vector<std::unique_ptr<Material>> out;
+    if (!ubo2014::probe(path)) {
+        const Package package = read_package(path);
+        if (package.codec() != "bsvtf") {
+            try {
+                return find_codec(package.codec()).open_all(package);
+            } catch (const Cancelled&) {
+                throw;
+            } catch (const Error& e) {
+                fail("{}: {}", path.string(), e.what());
+            }
+        }
+    }
+    out.push_back(open_material(path));
+    return out;
+}
+
 std::unique_ptr<Material> open_material(const std::filesystem::path& path) {
     if (ubo2014::probe(path)) return open_ubo2014_material(path);
     const Package package = read_package(path);

@@ -109,6 +109,9 @@ const Codec& find_codec(std::string_view name);
 /// Opens a package (or a clean prefix) with the codec its header names, or a BSVTF file
 /// (bsvtf/material.h: its finest tiles).
 std::unique_ptr<Material> open_material(const Package& package);
+/// Every material of a package (Codec::open_all(): several for mlvq's shared code-books, else
+/// one), or of a BSVTF file or UBO2014 .btf file (one).
+std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path);
 /// read_package(path) then open_material(); a UBO2014 .btf file is opened as the material of its
 /// own factors (open_ubo2014_material in codecs/dfmf_export.h: the same material as its package).
 std::unique_ptr<Material> open_material(const std::filesystem::path& path);
