@@ -17,6 +17,8 @@
 #include "btf/io/package.h"
 #include "btf/io/ubo2014.h"
 #include "btf/io/utia.h"
+#include "btf/stream/catalog.h"
+#include "btf/synth/synth.h"
 #include "btf/util/error.h"
 
 namespace btf::cli {
@@ -219,6 +221,41 @@ fs::path cache_folder() {
     if (const char* home = std::getenv("HOME"); home && *home)
         return fs::path(home) / ".cache" / "btfkit";
     fail("no cache folder: set BTF_CACHE_DIR (or HOME)");
+}
+
+fs::path demo_package(const GlobalOptions& global) {
+    constexpr int kSize = 128;
+    const fs::path folder = cache_folder() / "demo";
+    const fs::path path = folder / "woven_fabric.btfpkg";
+    std::error_code ec;
+    if (fs::exists(path, ec)) {
+        try {
+            const stream::CatalogEntry entry = stream::describe_package(path);
+            if (entry.codec == "fmf" && entry.width == kSize && entry.height == kSize &&
+                entry.views == 81 && entry.lights == 81)
+                return path;
+        } catch (const Cancelled&) {
+            throw;
+        } catch (const Error&) {
+            // Damaged: made again below.
+        }
+    }
+    fs::create_directories(folder, ec);
+    if (ec) fail("{}: cannot create the cache folder: {}", folder.string(), ec.message());
+    if (!global.quiet)
+        std::fprintf(stderr,
+                     "btf: making the demo material (woven_fabric, %dx%d texels, fmf) in "
+                     "%s; later starts reuse it\n",
+                     kSize, kSize, folder.string().c_str());
+    const DirectionSet& set = DirectionSet::ubo81();
+    const auto source = synth::make("woven_fabric", kSize, Sampling{set, set}, 1);
+    Progress progress = make_progress(global);
+    Package package = find_codec("fmf").encode(
+        *source, Params{{"components", "32"}, {"quantize", "f16"}}, progress);
+    // Written to a temporary name and renamed: a second server starting at the same time, or an
+    // interrupted first start, never sees a partial file.
+    write_package(path, package, {}, progress);
+    return path;
 }
 
 void write_ubo2014_package(const std::string& input, const fs::path& output,

@@ -101,6 +101,11 @@ struct Command {
 /// $BTF_CACHE_DIR, else $XDG_CACHE_HOME/btfkit (only an absolute path counts, as the XDG base
 /// directory rule says), else ~/.cache/btfkit.
 std::filesystem::path cache_folder();
+/// The built-in demo material (`btf serve` without packages, `btf render --material demo`):
+/// woven_fabric, 128² texels, ubo81 sampling, fmf with 32 components in half floats, made once
+/// (a minute or so) into cache_folder()/demo and reused; a damaged or different file is made
+/// again.
+std::filesystem::path demo_package(const GlobalOptions& global);
 /// Writes the fmf package of the UBO2014 file `input`'s own factors to `output` (dfmf_export.h,
 /// package_of): `btf convert X.btf X.btfpkg`, and what serve and bundle make of a .btf input.
 void write_ubo2014_package(const std::string& input, const std::filesystem::path& output,

@@ -157,7 +157,8 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
     CLI::Option* material = cmd->add_option(
         "--material", args->material,
         "render every object with a \"btf\" material with this one instead (any package, .btf "
-        "or raw BTF); the scene's \"file\" is then not opened");
+        "or raw BTF; 'demo': the built-in demo material, made once in the cache folder as for "
+        "btf serve); the scene's \"file\" is then not opened");
     cmd->add_option("--compare", args->compare,
                     "render the scene twice, every BTF material replaced by A, then by B (any "
                     "package, .btf or raw BTF), and write A | B | ΔE00 heat map to the output, "
@@ -172,7 +173,9 @@ Command register_render(CLI::App& app, GlobalOptions& global) {
                                                               : render::SamplingMode::kMaterial;
                 if (args->compare.empty()) {
                     render::check_render_output(args->output, args->aovs);
-                    if (!args->material.empty())
+                    if (args->material == "demo")
+                        load.btf_override = render::open_material_file(demo_package(global));
+                    else if (!args->material.empty())
                         load.btf_override = render::open_material_file(args->material);
                     render::LoadedScene loaded = render::load_scene(args->scene, load);
                     if (!args->material.empty() && loaded.btf_objects == 0)

@@ -21,48 +21,6 @@ namespace btf::cli {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-// The demo: woven_fabric, 128² texels, ubo81 sampling, fmf with 32 components in half floats
-// (about 2 MiB). Made on the first start (a minute or so) and reused afterwards; a damaged or
-// different cached file is made again.
-fs::path demo_package(const GlobalOptions& global) {
-    constexpr int kSize = 128;
-    const fs::path folder = cache_folder() / "demo";
-    const fs::path path = folder / "woven_fabric.btfpkg";
-    std::error_code ec;
-    if (fs::exists(path, ec)) {
-        try {
-            const stream::CatalogEntry entry = stream::describe_package(path);
-            if (entry.codec == "fmf" && entry.width == kSize && entry.height == kSize &&
-                entry.views == 81 && entry.lights == 81)
-                return path;
-        } catch (const Cancelled&) {
-            throw;
-        } catch (const Error&) {
-            // Damaged: made again below.
-        }
-    }
-    fs::create_directories(folder, ec);
-    if (ec) fail("{}: cannot create the cache folder: {}", folder.string(), ec.message());
-    if (!global.quiet)
-        std::fprintf(stderr,
-                     "btf serve: making the demo material (woven_fabric, %dx%d texels, fmf) in "
-                     "%s; later starts reuse it\n",
-                     kSize, kSize, folder.string().c_str());
-    const DirectionSet& set = DirectionSet::ubo81();
-    const auto source = synth::make("woven_fabric", kSize, Sampling{set, set}, 1);
-    Progress progress = make_progress(global);
-    Package package = find_codec("fmf").encode(
-        *source, Params{{"components", "32"}, {"quantize", "f16"}}, progress);
-    // Written to a temporary name and renamed: a second server starting at the same time, or an
-    // interrupted first start, never sees a partial file.
-    write_package(path, package, {}, progress);
-    return path;
-}
-
-}  // namespace
-
 Command register_serve(CLI::App& app, GlobalOptions& global) {
     struct Args {
         std::vector<std::string> inputs;
