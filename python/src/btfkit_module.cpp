@@ -110,12 +110,13 @@ py::array_t<double> degrees(const btf::DirectionSet& set) {
     return out;
 }
 
-// An image as a new float32 (H, W, C) array.
-py::array_t<float> to_array(const btf::Image& image) {
-    py::array_t<float> out(
-        {py::ssize_t(image.height()), py::ssize_t(image.width()), py::ssize_t(image.channels())});
-    std::copy(image.data(), image.data() + out.size(), out.mutable_data());
-    return out;
+// An image handed to NumPy without a copy: the array views its values and owns it.
+py::array_t<float> owning_array(std::unique_ptr<btf::Image> image) {
+    btf::Image* raw = image.release();
+    py::capsule owner(raw, [](void* p) { delete static_cast<btf::Image*>(p); });
+    return py::array_t<float>(
+        {py::ssize_t(raw->height()), py::ssize_t(raw->width()), py::ssize_t(raw->channels())},
+        raw->data(), owner);
 }
 
 void check_index(int index, int count, const char* what) {
@@ -243,12 +244,12 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
             [](const BtfSource& s, int view, int light) {
                 check_index(view, s.num_views(), "view");
                 check_index(light, s.num_lights(), "light");
-                btf::Image image;
+                auto image = std::make_unique<btf::Image>();
                 {
                     py::gil_scoped_release release;
-                    s.read_image(view, light, image);
+                    s.read_image(view, light, *image);
                 }
-                return to_array(image);
+                return owning_array(std::move(image));
             },
             py::arg("view"), py::arg("light"),
             "The image of one view and light: float32 (height, width, 3), linear RGB.");
@@ -355,7 +356,7 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
                     btf::render::apply_overrides(loaded, overrides);
                 result = btf::render::render(loaded.scene, setup.options, progress);
             });
-            return to_array(result.color);
+            return owning_array(std::make_unique<btf::Image>(std::move(result.color)));
         },
         py::arg("scene"), py::arg("json"), py::arg("base"), py::arg("material"),
         py::arg("sampling"), py::arg("overrides"), py::arg("progress"));
