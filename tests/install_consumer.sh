@@ -81,6 +81,12 @@ install_consumer() {
     local codecs
     codecs=$("$prefix/$BINDIR/btf" codecs) || fail "the installed btf failed"
     grep -q '^fmf ' <<<"$codecs" || fail "the installed btf lists no fmf codec"
+    # Pictures go through the image module installed beside it, not this build's (the prefix
+    # differs from the configured one).
+    local formats
+    formats=$("$prefix/$BINDIR/btf" formats) || fail "btf formats failed"
+    grep -q "^images .*through $prefix/$BINDIR/../$LIBDIR/btfkit/" <<<"$formats" ||
+        fail "the installed btf does not load the installed image module: $(tail -1 <<<"$formats")"
 
     export PKG_CONFIG_PATH=$prefix/$LIBDIR/pkgconfig
     local cflags libs

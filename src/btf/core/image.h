@@ -76,6 +76,10 @@ std::optional<std::pair<int, int>> read_image_size_memory(const void* data, size
 /// True for the extensions write_image() stores as linear floats (exr, hdr, tif, tiff, pfm);
 /// other formats are 8-bit sRGB.
 bool is_float_image_format(const std::filesystem::path& path);
+/// The image module (OpenImageIO, core/image_module.h) this process reads and writes pictures
+/// with: the path it was loaded from (loading it if it was not yet). Throws btf::Error when it
+/// cannot be loaded, saying where it was looked for.
+std::string image_module_path();
 /// Throws btf::Error naming `path` unless write_image() can write its format and its folder
 /// exists: the check a long computation makes before it starts.
 void check_image_output(const std::filesystem::path& path);
