@@ -113,8 +113,11 @@ Rgb radiance(const Scene& scene, const Ray& camera_ray, Rng& rng, const Integrat
             if (wi.z <= 0) continue;
             const Rgb f = surface.eval(vertex, wi);
             if (is_black(f)) continue;
+            // The light sampled is not its own blocker: the shadow ray starts off the surface
+            // (spawn), and from there it can meet a sphere light's surface short of the sampled
+            // point by up to the offset over the cosine of incidence (near the silhouette).
             const double reach = std::isfinite(ld.distance) ? ld.distance * (1 - 1e-4) : INFINITY;
-            if (scene.occluded(scene.spawn(hit, ld.wi), reach)) continue;
+            if (scene.occluded(scene.spawn(hit, ld.wi), reach, light.get())) continue;
             double w = 1 / kPi;
             if (!ld.delta) {
                 const double mis = options.strategy == LightStrategy::kMis

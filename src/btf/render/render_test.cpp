@@ -83,6 +83,29 @@ TEST(Render, LambertianPlaneUnderDirectionalAndPointLight) {
     EXPECT_NEAR(p.color.at(4, 4, 1), rho / kPi * 8 / 4, 2e-4);
 }
 
+// A sphere light of radiance Le and radius r whose centre is d above a Lambertian plane gives
+// irradiance π·Le·(r/d)² below it, so L = ρ·Le·(r/d)². The plane is wide, so the scene's ray
+// offset (relative to the extent) is large next to the light's closeness: the shadow ray towards
+// the light must not count the light itself as a blocker (it did: 36 % of the value with this
+// 40-wide plane, 98.5 % with a 4-wide one).
+TEST(Render, SphereLightCloseAboveAWidePlane) {
+    const float rho = 0.6f;
+    const double r = 0.35, d = 1, Le = 4;
+    Scene scene;
+    scene.camera = looking_down(9);
+    scene.camera.position = {0, 3, 2};  // beside the light, not through it
+    scene.camera.fov = 1;               // the centre pixel sees the point under the light
+    scene.add_object(object_of(make_plane(40, 40), std::make_shared<BtfSurface>(lambertian(rho))));
+    scene.add_light(std::make_shared<SphereLight>(Vec3{0, d, 0}, r, Rgb{4, 4, 4}));
+    scene.commit();
+    RenderOptions options;
+    options.spp = 256;
+    options.integrator.max_depth = 1;
+    const RenderResult result = render(scene, options);
+    // Monte Carlo over the light's cone (fixed seed): a few per cent at most.
+    EXPECT_NEAR(result.color.at(4, 4, 0), rho * Le * (r / d) * (r / d), 0.02 * rho * Le * r * r);
+}
+
 TEST(Render, WhiteFurnaceConverges) {
     // A ρ = 1 diffuse sphere in a uniform environment of radiance 1 reflects exactly 1; so does a
     // ρ = 1 Lambertian BTF through its generic tabulated sampler, filtered deterministically

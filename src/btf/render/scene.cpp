@@ -192,10 +192,11 @@ Hit Scene::intersect(const Ray& ray, double max_distance) const {
     return hit;
 }
 
-bool Scene::occluded(const Ray& ray, double max_distance) const {
+bool Scene::occluded(const Ray& ray, double max_distance, const Light* except) const {
     if (!m_accel) throw Error("Scene::occluded before commit()");
     for (const SphereLight* sphere : m_spheres)
-        if (sphere->intersect(ray.origin, ray.direction) < max_distance) return true;
+        if (sphere != except && sphere->intersect(ray.origin, ray.direction) < max_distance)
+            return true;
     RTCRay r = embree_ray(ray, max_distance);
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);

@@ -83,8 +83,9 @@ class Scene {
     /// The closest hit along the ray within (0, max_distance), objects and sphere lights.
     Hit intersect(const Ray& ray,
                   double max_distance = std::numeric_limits<double>::infinity()) const;
-    /// Whether anything blocks the ray before max_distance (objects and sphere lights).
-    bool occluded(const Ray& ray, double max_distance) const;
+    /// Whether anything blocks the ray before max_distance (objects and sphere lights but
+    /// `except`, the light a shadow ray goes to).
+    bool occluded(const Ray& ray, double max_distance, const Light* except = nullptr) const;
     /// A ray leaving `hit` in world direction `d`, offset so that it does not hit its own surface.
     Ray spawn(const Hit& hit, const Vec3& d) const;
 
