@@ -91,27 +91,24 @@ def render(scene, spp=None, size=None, seed=None, integrator=None, max_depth=Non
     limit). material: a package (or .btf or raw BTF) that replaces every "btf" material of the
     scene. sampling: "material", "generic" or "cosine". progress and Ctrl-C as for compress().
     """
+    def at_least(name, value, low, kind=int):
+        if value is None:
+            return None
+        value = kind(value)
+        if value < low:
+            raise ValueError(f"{name}: must be at least {low}")
+        return value
+
     o = _RenderOverrides()
     if integrator is not None:
         o.integrator = str(integrator)
-    if spp is not None:
-        if int(spp) < 0:
-            raise ValueError("spp: must be 0 or more")
-        o.spp = int(spp)
-    if max_depth is not None:
-        if int(max_depth) < 1:
-            raise ValueError("max_depth: must be at least 1")
-        o.max_depth = int(max_depth)
-    if seed is not None:
-        if int(seed) < 0:
-            raise ValueError("seed: must be 0 or more")
-        o.seed = int(seed)
     if filter is not None:
         o.filter = str(filter)
-    if time is not None:
-        if float(time) < 0:
-            raise ValueError("time: must be 0 or more")
-        o.time_limit = float(time)
+    for name, value, low, kind in (("spp", spp, 0, int), ("max_depth", max_depth, 1, int),
+                                   ("seed", seed, 0, int), ("time_limit", time, 0, float)):
+        value = at_least("time" if name == "time_limit" else name, value, low, kind)
+        if value is not None:
+            setattr(o, name, value)
     if size is not None:
         try:
             o.width, o.height = (int(v) for v in size)
