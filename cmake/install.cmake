@@ -224,6 +224,12 @@ print(os.path.join(os.path.relpath(os.path.dirname(base), '/'),
           COMPONENT python EXCLUDE_FROM_ALL)
   install(TARGETS btfkit_images LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/btfkit
           COMPONENT python EXCLUDE_FROM_ALL)
+  # The module tells the library where the image module lies relative to itself
+  # (btf::add_image_module_candidate), so an installed module reads pictures from any prefix.
+  file(RELATIVE_PATH _btfkit_python_to_images /prefix/${BTFKIT_INSTALL_PYTHONDIR}/btfkit
+       /prefix/${CMAKE_INSTALL_LIBDIR}/btfkit)
+  target_compile_definitions(btfkit_python PRIVATE
+                             BTFKIT_PYTHON_TO_IMAGES="${_btfkit_python_to_images}")
   if(BTFKIT_SHARED)
     install(TARGETS btfkit LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} NAMELINK_SKIP
             COMPONENT python EXCLUDE_FROM_ALL)

@@ -85,7 +85,7 @@ install_consumer() {
     # differs from the configured one).
     local formats
     formats=$("$prefix/$BINDIR/btf" formats) || fail "btf formats failed"
-    grep -q "^images .*through $prefix/$BINDIR/../$LIBDIR/btfkit/" <<<"$formats" ||
+    grep -q "^images .*through $prefix/$LIBDIR/btfkit/" <<<"$formats" ||
         fail "the installed btf does not load the installed image module: $(tail -1 <<<"$formats")"
 
     export PKG_CONFIG_PATH=$prefix/$LIBDIR/pkgconfig
@@ -146,9 +146,12 @@ source = btfkit.synth("woven_fabric", 8)
 image = source.image(0, 0)
 assert image.shape == (8, 8, 3) and image.min() >= 0 and image.max() > 0, image
 assert "fmf" in btfkit.codecs()
-print("imported", btfkit.__file__)
+# Pictures through the image module installed beside it (the prefix is not the configured one).
+module = btfkit._btfkit._image_module()
+assert module.startswith(sys.argv[2] + "/"), module
+print("imported", btfkit.__file__, "images through", module)
 EOF
-    (cd "$work" && PYTHONPATH=$site "$PYTHON" -s import.py "$site") ||
+    (cd "$work" && PYTHONPATH=$site "$PYTHON" -s import.py "$site" "$prefix") ||
         fail "import from the prefix failed"
 }
 

@@ -51,11 +51,12 @@ def compress(source, out, codec="fmf", progress=None, **params):
 
     Keyword arguments are the codec's parameters, as `btf compress -p name=value` takes them
     (power_iterations=0 is power-iterations=0); they are listed below and by codecs(). An unknown
-    parameter or a value out of range raises btfkit.Error before anything is read, and `out` is
-    written only when the package is complete.
+    parameter or a value out of range raises btfkit.Error before the codec reads any image, and
+    `out` is written only when the package is complete.
 
     source may also be a list of Sources or paths: codecs that share code-books (mlvq) put them
-    all in one package (Material of each: open_materials); others raise btfkit.Error.
+    all in one package (a Material of each: open_materials; each named by its path, or by its
+    source's own name); others raise btfkit.Error.
 
     progress: None, or a callable progress(stage, done, total) called on this thread as the work
     advances; an exception it raises cancels the work. Ctrl-C cancels too (KeyboardInterrupt),
@@ -63,8 +64,8 @@ def compress(source, out, codec="fmf", progress=None, **params):
     """
     several = isinstance(source, (list, tuple))
     sources = [_source(s, "source") for s in (source if several else [source])]
-    names = [_os.fspath(s) if isinstance(s, _PATH) else f"material {k}"
-             for k, s in enumerate(source if several else [source])]
+    names = [_os.fsdecode(s) if isinstance(s, _PATH) else ""
+             for s in (source if several else [source])]
     if not sources:
         raise ValueError("source: an empty list")
     _compress(sources, names, _os.fspath(out), codec, params, _callback(progress))
@@ -101,9 +102,13 @@ def render(scene, spp=None, size=None, seed=None, integrator=None, max_depth=Non
 
     o = _RenderOverrides()
     if integrator is not None:
-        o.integrator = str(integrator)
+        if integrator not in ("path", "direct"):
+            raise ValueError(f"integrator: expected 'path' or 'direct', got {integrator!r}")
+        o.integrator = integrator
     if filter is not None:
-        o.filter = str(filter)
+        if filter not in ("stochastic", "deterministic"):
+            raise ValueError(f"filter: expected 'stochastic' or 'deterministic', got {filter!r}")
+        o.filter = filter
     for name, value, low, kind in (("spp", spp, 0, int), ("max_depth", max_depth, 1, int),
                                    ("seed", seed, 0, int), ("time_limit", time, 0, float)):
         value = at_least("time" if name == "time_limit" else name, value, low, kind)
@@ -150,4 +155,5 @@ def _codec_parameters_doc():
     return "\n".join(lines)
 
 
-compress.__doc__ += _codec_parameters_doc()
+if compress.__doc__:  # None under python -OO
+    compress.__doc__ += _codec_parameters_doc()

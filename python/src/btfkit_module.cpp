@@ -1,6 +1,7 @@
 // The btfkit Python module's native part (_btfkit): sources, synthesis, compression and
 // materials over NumPy arrays. python/btfkit/__init__.py re-exports it with the pure-Python
 // helpers; docs/python.md describes the API.
+#include <dlfcn.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -18,6 +19,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/codecs/material_source.h"
+#include "btf/core/image.h"
 #include "btf/core/material.h"
 #include "btf/io/open.h"
 #include "btf/io/package.h"
@@ -141,25 +143,33 @@ btf::Params params_of(const py::dict& kwargs) {
 }
 
 // Runs work(progress) on a worker thread while the calling thread waits with the GIL released,
-// waking every 50 ms to hold the GIL briefly: Python's signal handlers run then (Ctrl-C cancels
-// the work, which unwinds and leaves no partial output, and KeyboardInterrupt is raised), and
-// `callback(stage, done, total)` is called, on this thread, when the progress has moved. An
-// exception the callback raises cancels the work and is raised in its place.
+// waking when the work reports progress and every 50 ms otherwise, to hold the GIL briefly:
+// Python's signal handlers run then (Ctrl-C cancels the work, which unwinds and leaves no partial
+// output, and KeyboardInterrupt is raised), and `callback(stage, done, total)` is called on this
+// thread. With a callback, each report waits until the callback has run, so an exception it
+// raises cancels the work before the work goes on (and before any output is committed); that
+// exception is raised in the work's place.
 void interruptible(const py::object& callback, const std::function<void(btf::Progress&)>& work) {
     struct Shared {
         std::mutex mutex;
-        std::condition_variable finished;
-        bool done = false, moved = false;
+        std::condition_variable changed;
+        bool done = false;
+        bool event = false;      // a report the calling thread has not handled yet
+        bool abandoned = false;  // the calling thread stops handling reports
         std::string stage;
         uint64_t units = 0, total = 0;
         std::exception_ptr error;
     } shared;
+    const bool synchronous = !callback.is_none();
     btf::Progress progress([&](std::string_view stage, uint64_t done, uint64_t total) {
-        const std::lock_guard lock(shared.mutex);
+        std::unique_lock lock(shared.mutex);
         shared.stage = stage;
         shared.units = done;
         shared.total = total;
-        shared.moved = true;
+        shared.event = true;
+        shared.changed.notify_all();
+        if (synchronous)
+            shared.changed.wait(lock, [&] { return !shared.event || shared.abandoned; });
     });
     std::thread worker([&] {
         try {
@@ -169,34 +179,56 @@ void interruptible(const py::object& callback, const std::function<void(btf::Pro
         }
         const std::lock_guard lock(shared.mutex);
         shared.done = true;
-        shared.finished.notify_all();
+        shared.changed.notify_all();
     });
+    // However this function is left, the work is cancelled (unless done), released and joined.
+    struct Join {
+        Shared& shared;
+        btf::Progress& progress;
+        std::thread& worker;
+        ~Join() {
+            {
+                const std::lock_guard lock(shared.mutex);
+                if (!shared.done) progress.cancel();
+                shared.abandoned = true;
+                shared.changed.notify_all();
+            }
+            py::gil_scoped_release release;
+            worker.join();
+        }
+    } join{shared, progress, worker};
+
     std::optional<py::error_already_set> raised;  // by a signal handler or the callback
-    for (bool done = false; !done;) {
+    for (;;) {
         std::string stage;
         uint64_t units = 0, total = 0;
-        bool moved = false;
+        bool event = false, done = false;
         {
             py::gil_scoped_release release;
             std::unique_lock lock(shared.mutex);
-            shared.finished.wait_for(lock, std::chrono::milliseconds(50),
-                                     [&] { return shared.done; });
-            done = shared.done;
-            std::swap(moved, shared.moved);
+            shared.changed.wait_for(lock, std::chrono::milliseconds(50),
+                                    [&] { return shared.done || shared.event; });
+            done = shared.done, event = shared.event;
             stage = shared.stage, units = shared.units, total = shared.total;
         }
-        if (raised) continue;
-        try {
-            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-            if (moved && !callback.is_none()) callback(stage, units, total);
-        } catch (py::error_already_set& e) {
-            raised.emplace(std::move(e));
-            progress.cancel();
+        if (raised) {
+            // Cancelling already: a second Ctrl-C is not raised later out of context.
+            if (PyErr_CheckSignals() != 0) PyErr_Clear();
+        } else {
+            try {
+                if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+                if (event && synchronous) callback(stage, units, total);
+            } catch (py::error_already_set& e) {
+                raised.emplace(std::move(e));
+                progress.cancel();
+            }
         }
-    }
-    {
-        py::gil_scoped_release release;
-        worker.join();
+        if (event) {
+            const std::lock_guard lock(shared.mutex);
+            shared.event = false;
+            shared.changed.notify_all();
+        }
+        if (done) break;
     }
     if (raised) throw std::move(*raised);
     if (shared.error) std::rethrow_exception(shared.error);
@@ -206,6 +238,13 @@ void interruptible(const py::object& callback, const std::function<void(btf::Pro
 
 PYBIND11_MODULE(_btfkit, m) {
     m.doc() = "btfkit's native module; import btfkit instead.";
+#ifdef BTFKIT_PYTHON_TO_IMAGES
+    // Installed (cmake --install --component python), the image module lies at this path
+    // relative to this file, whatever the prefix.
+    if (Dl_info info; dladdr(reinterpret_cast<void*>(&interruptible), &info) && info.dli_fname)
+        btf::add_image_module_candidate(std::filesystem::path(info.dli_fname).parent_path() /
+                                        BTFKIT_PYTHON_TO_IMAGES / "libbtfkit_images.so");
+#endif
 
     // btf::Error → btfkit.Error (the same one-line message); btf::Cancelled → KeyboardInterrupt.
     static py::exception<btf::Error> error(m, "Error");
@@ -277,6 +316,8 @@ image(view, light): float32 (height, width, 3) linear RGB.)")
         "set (ubo81, dome151 or a file) for views and lights, and a seed.");
 
     m.def("presets", &btf::synth::preset_names, "The names synth() accepts.");
+    m.def("_image_module", &btf::image_module_path,
+          "Where the image module (pictures: JPEG, PNG, EXR) was loaded from.");
     m.def(
         "codecs",
         [] {

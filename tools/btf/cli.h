@@ -103,8 +103,8 @@ struct Command {
 std::filesystem::path cache_folder();
 /// The built-in demo material (`btf serve` without packages, `btf render --material demo`):
 /// woven_fabric, 128² texels, ubo81 sampling, fmf with 32 components in half floats, made once
-/// (a minute or so) into cache_folder()/demo and reused; a damaged or different file is made
-/// again.
+/// (about 15 s on two cores) into cache_folder()/demo and reused; a damaged or different file is
+/// made again.
 std::filesystem::path demo_package(const GlobalOptions& global);
 /// Writes the fmf package of the UBO2014 file `input`'s own factors to `output` (dfmf_export.h,
 /// package_of): `btf convert X.btf X.btfpkg`, and what serve and bundle make of a .btf input.

@@ -66,6 +66,7 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
                     shortcut("components", std::to_string(args->components), "--components");
                 if (quantize->count()) shortcut("quantize", args->quantize, "--quantize");
                 codec.validate(params);
+                codec.check_several(args->inputs.size());
                 std::vector<std::unique_ptr<BtfSource>> sources;
                 for (const std::string& input : args->inputs)
                     sources.push_back(open_input(input, args->open, args->views));

@@ -210,9 +210,10 @@ TEST_F(RenderCli, MaterialReplacesEveryBtfMaterialOfTheScene) {
     EXPECT_FALSE(fs::exists(path("no.png")));
 }
 
-// The scenes in examples/scenes, each with the material file it names (demo.btfpkg beside it,
-// which examples/scenes/README.md makes): copied with a tiny stand-in material and rendered at a
-// tiny size. Relative paths (the material, meshes) resolve beside the scene file.
+// The scenes in examples/scenes, each with the material file it names (demo.btfpkg beside it;
+// users render them with --material demo or their own package): copied with a tiny stand-in
+// material and rendered at a tiny size. Relative paths (the material, meshes) resolve beside the
+// scene file.
 TEST_F(RenderCli, EveryExampleSceneRenders) {
     const fs::path examples = fs::path(BTF_SOURCE_DIR) / "examples" / "scenes";
     const fs::path dir = path("example_scenes");

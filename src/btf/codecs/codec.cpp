@@ -111,15 +111,21 @@ std::string param_number_text(float value) {
     return plain_exponent(fmt::format("{}", value));
 }
 
-Package Codec::encode_several(std::span<const BtfSource* const> sources,
-                              std::span<const std::string>, const Params& params,
-                              Progress& progress) const {
-    if (sources.size() == 1) return encode(*sources[0], params, progress);
+void Codec::check_several(size_t count) const {
+    if (count <= 1 || encodes_several()) return;
     std::vector<std::string> several;
     for (const Codec* codec : codecs())
         if (codec->encodes_several()) several.emplace_back(codec->name());
     fail("codec {} compresses one input; several inputs share code-books only with {}", name(),
          fmt::join(several, ", "));
+}
+
+Package Codec::encode_several(std::span<const BtfSource* const> sources,
+                              std::span<const std::string>, const Params& params,
+                              Progress& progress) const {
+    check_several(sources.size());
+    check(sources.size() == 1, "codec {}: no source to encode", name());
+    return encode(*sources[0], params, progress);
 }
 
 std::vector<std::unique_ptr<Material>> Codec::open_all(const Package& package) const {
@@ -151,20 +157,20 @@ std::unique_ptr<Material> open_material(const Package& package) {
 
 std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path) {
     std::vector<std::unique_ptr<Material>> out;
-    if (!ubo2014::probe(path)) {
-        const Package package = read_package(path);
-        if (package.codec() != "bsvtf") {
-            try {
-                return find_codec(package.codec()).open_all(package);
-            } catch (const Cancelled&) {
-                throw;
-            } catch (const Error& e) {
-                fail("{}: {}", path.string(), e.what());
-            }
-        }
+    if (ubo2014::probe(path)) {
+        out.push_back(open_ubo2014_material(path));
+        return out;
     }
-    out.push_back(open_material(path));
-    return out;
+    const Package package = read_package(path);
+    try {
+        if (package.codec() != "bsvtf") return find_codec(package.codec()).open_all(package);
+        out.push_back(open_material(package));
+        return out;
+    } catch (const Cancelled&) {
+        throw;
+    } catch (const Error& e) {
+        fail("{}: {}", path.string(), e.what());
+    }
 }
 
 std::unique_ptr<Material> open_material(const std::filesystem::path& path) {

@@ -91,8 +91,11 @@ class Codec {
     /// Whether encode_several() puts several materials into one package (mlvq: shared
     /// code-books). The default is false.
     virtual bool encodes_several() const { return false; }
-    /// Compresses several sources into one package, `names[k]` naming source k in it. The default
-    /// refuses with "codec NAME compresses one input …".
+    /// Throws "codec NAME compresses one input …" when `count` > 1 and !encodes_several(): a
+    /// caller can refuse several inputs before opening them.
+    void check_several(size_t count) const;
+    /// Compresses several sources into one package, `names[k]` naming source k in it (empty: the
+    /// source's own name). One source: encode(). Several: check_several() refuses by default.
     virtual Package encode_several(std::span<const BtfSource* const> sources,
                                    std::span<const std::string> names, const Params& params,
                                    Progress& progress = Progress::none()) const;

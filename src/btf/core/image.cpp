@@ -128,21 +128,29 @@ struct LoadedModule {
     std::string reasons;  // why not, when table is null
 };
 
-// Where to look, in order: $BTFKIT_IMAGE_MODULE; relative to the binary that holds this code, so
-// an install prefix may differ from the configured one (P/lib/libbtfkit.so, P/bin/btf and
-// P/lib/python3.X/dist-packages/btfkit/_btfkit.so all find P/lib/btfkit/); this build's module;
-// the configured install prefix.
+// Where to look, in order: $BTFKIT_IMAGE_MODULE; add_image_module_candidate()'s; relative to the
+// binary that holds this code, so
+// an install prefix may differ from the configured one (P/bin/btf and P/lib/libbtfkit.so find
+// P/lib/btfkit/, with the install layout's folder names); this build's module; the configured
+// install prefix.
+std::vector<std::string>& added_candidates() {
+    static std::vector<std::string> paths;
+    return paths;
+}
+
 std::vector<std::string> image_module_candidates() {
     std::vector<std::string> out;
     if (const char* path = std::getenv("BTFKIT_IMAGE_MODULE"); path && *path)
         out.emplace_back(path);
+    for (const std::string& path : added_candidates()) out.push_back(path);
     Dl_info info;
     if (dladdr(reinterpret_cast<void*>(&image_module_candidates), &info) && info.dli_fname) {
         std::error_code ec;
         const std::filesystem::path self = std::filesystem::canonical(info.dli_fname, ec);
         if (!ec)
-            for (const char* relative : {"btfkit", "../lib/btfkit", "../../../btfkit"})
-                out.push_back((self.parent_path() / relative / kImageModuleName).string());
+            for (const char* relative : kImageModuleRelative)
+                out.push_back(
+                    (self.parent_path() / relative / kImageModuleName).lexically_normal().string());
     }
     for (const char* path : kImageModulePaths) out.emplace_back(path);
     return out;
@@ -190,6 +198,10 @@ const image_module::Table& loaded_image_module(const std::string& name) {
 }
 
 }  // namespace
+
+void add_image_module_candidate(const std::filesystem::path& path) {
+    added_candidates().push_back(path.lexically_normal().string());
+}
 
 std::string image_module_path() {
     loaded_image_module("image module");

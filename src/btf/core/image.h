@@ -80,6 +80,9 @@ bool is_float_image_format(const std::filesystem::path& path);
 /// with: the path it was loaded from (loading it if it was not yet). Throws btf::Error when it
 /// cannot be loaded, saying where it was looked for.
 std::string image_module_path();
+/// Looks for the image module at `path` first (before the places image.cpp knows), for a binary
+/// that knows where its install puts it (the Python module). Call before the first image is read.
+void add_image_module_candidate(const std::filesystem::path& path);
 /// Throws btf::Error naming `path` unless write_image() can write its format and its folder
 /// exists: the check a long computation makes before it starts.
 void check_image_output(const std::filesystem::path& path);

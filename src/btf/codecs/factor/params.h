@@ -45,7 +45,7 @@ void declare_storage_and_svd(ParamSchema<Options>& schema) {
                                                                   {"f16", Quantization::kF16},
                                                                   {"u8", Quantization::kU8}},
                 "factor storage: f32, f16 or u8 (8 bits with per-component scale)")
-        .integer("oversampling", &Options::oversampling, 0, 1024,
+        .integer("oversampling", &Options::oversampling, 0, 4096,
                  "extra random vectors of the randomized SVD")
         .integer("power-iterations", &Options::power_iterations, 0, 64,
                  "power iterations of the randomized SVD (2 passes over the source each)")

@@ -1434,9 +1434,11 @@ class MlvqCodec final : public Codec {
                            Progress& progress) const override {
         check(names.size() == sources.size(), "mlvq: {} names for {} materials", names.size(),
               sources.size());
+        if (sources.size() == 1) return encode(*sources[0], params, progress);
         const mlvq::Options o = mlvq::schema().parse(params);
         auto [books, indices] = mlvq::encode_shared(sources, o, progress);
-        for (size_t k = 0; k < indices.size(); ++k) indices[k].name = names[k];
+        for (size_t k = 0; k < indices.size(); ++k)
+            if (!names[k].empty()) indices[k].name = names[k];
         return mlvq::to_package(books, indices, o);
     }
 
