@@ -1,0 +1,145 @@
+// The products of one randomized-SVD pass at the shapes fmf streams (issue 22, groundwork): a
+// batch A of b rows × 65536 texel columns times the thin sketch, Y = A·X (X: 65536 × l) and
+// Z = Aᵀ·Q (Q: b × l), l = 74 (C = 64 + oversampling 10), float32. Three ways:
+//   eigen-chunks   what factor/rsvd.cpp does: Eigen products over fixed chunks on TBB's threads
+//                  (64-row chunks for Y, 2048-column slices for Z);
+//   openblas       one cblas_sgemm per batch on OpenBLAS's own threads;
+//   openblas-1t    one single-threaded sgemm per fixed chunk on TBB's threads (the chunks of
+//                  eigen-chunks), so that no sum depends on the number of threads.
+// For each, the best of --repeat runs in GFLOP/s, and whether the result is bitwise the same with
+// one thread as with all (the factorization's guarantee). Prints the OpenBLAS kernel in use
+// (OPENBLAS_CORETYPE, when set, chooses it) and a Markdown table.
+//
+//   build/<dir>/gemm_pass [--repeat 5] [--rows 243,972,2916,8192]
+
+#include <cblas.h>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "btf/util/parallel.h"
+
+extern "C" char* openblas_get_corename(void);
+extern "C" int openblas_get_num_threads(void);
+extern "C" void openblas_set_num_threads(int threads);
+
+namespace {
+
+using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+constexpr int64_t kCols = 65536, kWidth = 74, kRowChunk = 64, kColumnSlice = 2048;
+
+double seconds(const std::function<void()>& run, int repeat) {
+    double best = 1e300;
+    for (int i = 0; i < repeat; ++i) {
+        const auto start = std::chrono::steady_clock::now();
+        run();
+        best = std::min(
+            best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+    return best;
+}
+
+void sgemm(bool transpose_a, int64_t m, int64_t n, int64_t k, const float* a, int64_t lda,
+           const float* b, int64_t ldb, float beta, float* c, int64_t ldc) {
+    cblas_sgemm(CblasRowMajor, transpose_a ? CblasTrans : CblasNoTrans, CblasNoTrans, int(m),
+                int(n), int(k), 1.0f, a, int(lda), b, int(ldb), beta, c, int(ldc));
+}
+
+struct Way {
+    const char* name;
+    std::function<void(const Matrix& a, const Matrix& x, Matrix& y)> rows;        // y = a·x
+    std::function<void(const Matrix& a, const Matrix& q, Matrix& z)> transposed;  // z = aᵀ·q
+    bool blas_threads;  // runs on OpenBLAS's threads (else TBB's, OpenBLAS set to one)
+};
+
+std::vector<Way> ways() {
+    return {
+        {"eigen-chunks",
+         [](const Matrix& a, const Matrix& x, Matrix& y) {
+             btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
+                 y.middleRows(r0, r1 - r0).noalias() = a.middleRows(r0, r1 - r0) * x;
+             });
+         },
+         [](const Matrix& a, const Matrix& q, Matrix& z) {
+             btf::parallel_chunks(0, a.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
+                 z.middleRows(c0, c1 - c0).noalias() = a.middleCols(c0, c1 - c0).transpose() * q;
+             });
+         },
+         false},
+        {"openblas",
+         [](const Matrix& a, const Matrix& x, Matrix& y) {
+             sgemm(false, a.rows(), x.cols(), a.cols(), a.data(), a.cols(), x.data(), x.cols(), 0,
+                   y.data(), y.cols());
+         },
+         [](const Matrix& a, const Matrix& q, Matrix& z) {
+             sgemm(true, a.cols(), q.cols(), a.rows(), a.data(), a.cols(), q.data(), q.cols(), 0,
+                   z.data(), z.cols());
+         },
+         true},
+        {"openblas-1t",
+         [](const Matrix& a, const Matrix& x, Matrix& y) {
+             btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
+                 sgemm(false, r1 - r0, x.cols(), a.cols(), a.data() + r0 * a.cols(), a.cols(),
+                       x.data(), x.cols(), 0, y.data() + r0 * y.cols(), y.cols());
+             });
+         },
+         [](const Matrix& a, const Matrix& q, Matrix& z) {
+             btf::parallel_chunks(0, a.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
+                 sgemm(true, c1 - c0, q.cols(), a.rows(), a.data() + c0, a.cols(), q.data(),
+                       q.cols(), 0, z.data() + c0 * z.cols(), z.cols());
+             });
+         },
+         false},
+    };
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app("GEMM rates of a randomized-SVD pass at fmf's shapes");
+    int repeat = 5;
+    std::vector<int64_t> batch_rows = {243, 972, 2916, 8192};
+    app.add_option("--repeat", repeat, "runs; the best counts")->check(CLI::Range(1, 100));
+    app.add_option("--rows", batch_rows, "rows per batch (243: one view of 81 lights × RGB)")
+        ->delimiter(',');
+    CLI11_PARSE(app, argc, argv);
+
+    const int all = openblas_get_num_threads();
+    const char* coretype = std::getenv("OPENBLAS_CORETYPE");
+    std::printf("OpenBLAS kernel %s (OPENBLAS_CORETYPE %s), %d threads; %lld columns, l = %lld\n\n",
+                openblas_get_corename(), coretype ? coretype : "unset", all,
+                static_cast<long long>(kCols), static_cast<long long>(kWidth));
+    std::printf(
+        "| rows per batch | way | Y = A·X (GFLOP/s) | Z = Aᵀ·Q (GFLOP/s) | same with 1 thread |\n");
+    std::printf("|---|---|---|---|---|\n");
+    for (const int64_t rows : batch_rows) {
+        const Matrix a = Matrix::Random(rows, kCols), x = Matrix::Random(kCols, kWidth),
+                     q = Matrix::Random(rows, kWidth);
+        const double flop = 2.0 * double(rows) * double(kCols) * double(kWidth);
+        for (const Way& way : ways()) {
+            openblas_set_num_threads(way.blas_threads ? all : 1);
+            Matrix y(rows, kWidth), z(kCols, kWidth);
+            const double ty = seconds([&] { way.rows(a, x, y); }, repeat);
+            const double tz = seconds([&] { way.transposed(a, q, z); }, repeat);
+            Matrix y1(rows, kWidth), z1(kCols, kWidth);
+            {
+                btf::ThreadLimit one(1);
+                if (way.blas_threads) openblas_set_num_threads(1);
+                way.rows(a, x, y1);
+                way.transposed(a, q, z1);
+            }
+            const bool same = y1 == y && z1 == z;
+            std::printf("| %lld | %s | %.0f | %.0f | %s |\n", static_cast<long long>(rows),
+                        way.name, flop / ty / 1e9, flop / tz / 1e9, same ? "yes" : "**no**");
+            std::fflush(stdout);
+        }
+    }
+    openblas_set_num_threads(all);
+    return 0;
+}
