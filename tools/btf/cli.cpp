@@ -207,10 +207,8 @@ void add_raw_output_options(CLI::App& command, RawOutputOptions& options) {
         ->check(CLI::Range(0, 9));
 }
 
-void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
-               const RawOutputOptions& options, Progress& progress) {
-    if (kind != OutputKind::kHdf5 && kind != OutputKind::kFolder)
-        fail("{}: not an HDF5 file or UTIA folder name", output);
+void write_raw(const BtfSource& source, const std::string& output, const RawOutputOptions& options,
+               Progress& progress) {
     write_source(source, output, {!options.use_float, options.deflate, options.format}, progress);
 }
 

@@ -76,9 +76,10 @@ struct RawOutputOptions {
 };
 /// Adds --format, --float and --deflate.
 void add_raw_output_options(CLI::App& command, RawOutputOptions& options);
-/// Writes `source` as btfkit HDF5 (kind kHdf5) or a new UTIA image set folder (kind kFolder).
-void write_raw(const BtfSource& source, const std::string& output, OutputKind kind,
-               const RawOutputOptions& options, Progress& progress);
+/// write_source() with the command line's options: btfkit HDF5 for a .h5 output, else a new UTIA
+/// image set folder (callers check the output's kind before reading their input).
+void write_raw(const BtfSource& source, const std::string& output, const RawOutputOptions& options,
+               Progress& progress);
 
 /// The BSVTF tile options of `btf bsvtf` and `btf bsvtf-sim`: --tile, --pad, --tile-error and
 /// --lossless.

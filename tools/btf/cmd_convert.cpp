@@ -82,7 +82,7 @@ Command register_convert(CLI::App& app, GlobalOptions& global) {
                     options.scalar_size = args->half ? 2 : 4;
                     export_dfmf(args->output, *source, options, progress);
                 } else {
-                    write_raw(*source, args->output, kind, args->raw, progress);
+                    write_raw(*source, args->output, args->raw, progress);
                 }
                 if (!global.quiet) std::printf("wrote %s\n", args->output.c_str());
             }};

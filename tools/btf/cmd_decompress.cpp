@@ -35,7 +35,7 @@ Command register_decompress(CLI::App& app, GlobalOptions& global) {
                         args->output, lower_extension(args->output));
                 const auto source = open_package_source(args->input);
                 Progress progress = make_progress(global);
-                write_raw(*source, args->output, kind, args->raw, progress);
+                write_raw(*source, args->output, args->raw, progress);
                 if (!global.quiet) std::printf("wrote %s\n", args->output.c_str());
             }};
 }

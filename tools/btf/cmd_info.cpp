@@ -117,7 +117,7 @@ void package_info(const std::string& path, bool json) {
     // ratio counts them all.
     std::vector<std::unique_ptr<Material>> materials;
     try {
-        materials = find_codec(package.codec()).open_all(package);
+        materials = open_materials(package);
     } catch (const Cancelled&) {
         throw;
     } catch (const Error& e) {

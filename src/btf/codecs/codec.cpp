@@ -155,17 +155,25 @@ std::unique_ptr<Material> open_material(const Package& package) {
     return find_codec(package.codec()).open(package);
 }
 
-std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path) {
-    std::vector<std::unique_ptr<Material>> out;
-    if (ubo2014::probe(path)) {
-        out.push_back(open_ubo2014_material(path));
-        return out;
-    }
-    const Package package = read_package(path);
-    try {
-        if (package.codec() != "bsvtf") return find_codec(package.codec()).open_all(package);
+std::vector<std::unique_ptr<Material>> open_materials(const Package& package) {
+    if (package.codec() == "bsvtf") {
+        std::vector<std::unique_ptr<Material>> out;
         out.push_back(open_material(package));
         return out;
+    }
+    return find_codec(package.codec()).open_all(package);
+}
+
+namespace {
+
+// open(package) for the package at `path`, its errors prefixed with the path (a UBO2014 .btf
+// file is its own factors' material: open_ubo2014).
+template <typename Open, typename OpenUbo2014>
+auto open_file(const std::filesystem::path& path, Open open, OpenUbo2014 open_ubo2014) {
+    if (ubo2014::probe(path)) return open_ubo2014(path);
+    const Package package = read_package(path);
+    try {
+        return open(package);
     } catch (const Cancelled&) {
         throw;
     } catch (const Error& e) {
@@ -173,16 +181,22 @@ std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::pat
     }
 }
 
+}  // namespace
+
+std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path) {
+    return open_file(
+        path, [](const Package& p) { return open_materials(p); },
+        [](const std::filesystem::path& p) {
+            std::vector<std::unique_ptr<Material>> out;
+            out.push_back(open_ubo2014_material(p));
+            return out;
+        });
+}
+
 std::unique_ptr<Material> open_material(const std::filesystem::path& path) {
-    if (ubo2014::probe(path)) return open_ubo2014_material(path);
-    const Package package = read_package(path);
-    try {
-        return open_material(package);
-    } catch (const Cancelled&) {
-        throw;
-    } catch (const Error& e) {
-        fail("{}: {}", path.string(), e.what());
-    }
+    return open_file(
+        path, [](const Package& p) { return open_material(p); },
+        [](const std::filesystem::path& p) { return open_ubo2014_material(p); });
 }
 
 }  // namespace btf

@@ -113,7 +113,9 @@ const Codec& find_codec(std::string_view name);
 /// (bsvtf/material.h: its finest tiles).
 std::unique_ptr<Material> open_material(const Package& package);
 /// Every material of a package (Codec::open_all(): several for mlvq's shared code-books, else
-/// one), or of a BSVTF file or UBO2014 .btf file (one).
+/// one; a BSVTF file: one).
+std::vector<std::unique_ptr<Material>> open_materials(const Package& package);
+/// read_package(path) then open_materials(); a UBO2014 .btf file gives its one material.
 std::vector<std::unique_ptr<Material>> open_materials(const std::filesystem::path& path);
 /// read_package(path) then open_material(); a UBO2014 .btf file is opened as the material of its
 /// own factors (open_ubo2014_material in codecs/dfmf_export.h: the same material as its package).
