@@ -87,6 +87,7 @@ btfkit_dependency(ITEMS PkgConfig::XXHASH PKG "XXHASH libxxhash" PC libxxhash)
 btfkit_dependency(ITEMS PkgConfig::ZSTD PKG "ZSTD libzstd" PC libzstd)
 btfkit_dependency(ITEMS PkgConfig::DEFLATE PKG "DEFLATE libdeflate" PC libdeflate)
 btfkit_dependency(ITEMS PkgConfig::KISSFFT PKG "KISSFFT kissfft-float" PC kissfft-float)
+btfkit_dependency(ITEMS PkgConfig::OPENBLAS PKG "OPENBLAS openblas" PC openblas)
 btfkit_dependency(ITEMS embree FIND "embree 3" LIBS -lembree3)
 btfkit_dependency(ITEMS tinyobjloader::tinyobjloader FIND tinyobjloader PC tinyobjloader)
 btfkit_dependency(ITEMS Boost::headers FIND "Boost 1.74")  # header-only: nothing to link

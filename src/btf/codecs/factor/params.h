@@ -36,7 +36,8 @@ void declare_colour(ParamSchema<Options>& schema, const std::vector<ColourBasis>
     });
 }
 
-/// quantize=… (factor storage) and the randomized SVD's oversampling, power-iterations, seed.
+/// quantize=… (factor storage) and the randomized SVD's method, oversampling, power-iterations,
+/// block, seed.
 template <class Options>
 void declare_storage_and_svd(ParamSchema<Options>& schema) {
     schema
@@ -45,10 +46,18 @@ void declare_storage_and_svd(ParamSchema<Options>& schema) {
                                                                   {"f16", Quantization::kF16},
                                                                   {"u8", Quantization::kU8}},
                 "factor storage: f32, f16 or u8 (8 bits with per-component scale)")
+        .choice("svd", &Options::svd,
+                std::vector<std::pair<std::string, SvdMethod>>{{"subspace", SvdMethod::kSubspace},
+                                                               {"krylov", SvdMethod::kBlockKrylov}},
+                "randomized SVD: subspace iteration (2 + 2q passes over the source) or block "
+                "Krylov (q + 2 passes, about half the products for equal accuracy)")
         .integer("oversampling", &Options::oversampling, 0, 4096,
-                 "extra random vectors of the randomized SVD")
+                 "extra random vectors of the randomized SVD (krylov: its blocks span "
+                 "2·(rank + oversampling) columns)")
         .integer("power-iterations", &Options::power_iterations, 0, 64,
-                 "power iterations of the randomized SVD (2 passes over the source each)")
+                 "q: power iterations of subspace iteration; krylov makes q + 2 blocks")
+        .integer("block", &Options::block, 0, 4096,
+                 "krylov: columns per block (0: 2·(rank + oversampling)/(q + 2))")
         .integer("seed", &Options::seed, 0, 1 << 30, "random seed of the randomized SVD");
 }
 
@@ -57,8 +66,10 @@ template <class Options>
 SvdOptions svd_options(const Options& options, int rank, bool subtract_mean) {
     SvdOptions out;
     out.rank = rank;
+    out.method = options.svd;
     out.oversampling = options.oversampling;
     out.power_iterations = options.power_iterations;
+    out.block = options.block;
     out.subtract_mean = subtract_mean;
     out.seed = options.seed;
     return out;

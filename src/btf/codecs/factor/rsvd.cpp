@@ -2,11 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <random>
 
+#include "btf/util/blas.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -17,9 +19,12 @@ namespace {
 // Column slice of the transposed products: fixed, so sums do not depend on the thread count.
 constexpr int64_t kColumnSlice = 2048;
 // Row chunk of the direct products: large enough that packing the right-hand factor (cols × l)
-// once per chunk costs little next to the product, small enough that a view's batch (nL · 3
-// rows) still splits over the cores.
-constexpr int64_t kRowChunk = 64;
+// once per chunk costs little next to the product (128 rows: 1.1× faster than 64 at fmf's
+// shapes, bench/gemm_pass), small enough that a view's batch (nL · 3 rows) still splits over
+// the cores.
+constexpr int64_t kRowChunk = 128;
+// Row chunk of the Gram–Schmidt sums over the thin factors' rows (fixed, for the same reason).
+constexpr int64_t kThinChunk = 4096;
 
 Matrix orthonormal_basis(const Matrix& y) {
     Eigen::HouseholderQR<Matrix> qr(y);
@@ -34,34 +39,71 @@ Matrix gaussian(int64_t rows, int64_t cols, uint64_t seed) {
     return out;
 }
 
-// Reads every batch once, centring rows if requested; calls use(m, first, rows) per matrix.
+// The rows of one matrix in one batch, as read or as held in memory (row-major, cols floats per
+// row).
+struct Rows {
+    const float* data;
+    int64_t rows, cols;
+};
+
+// Σ of the squares of the rows in double, summed per fixed row chunk and then in chunk order.
+double squared_norm(const Rows& rows) {
+    const int64_t chunks = (rows.rows + kRowChunk - 1) / kRowChunk;
+    std::vector<double> sums(chunks, 0.0);
+    parallel_chunks(0, rows.rows, kRowChunk, [&](int64_t r0, int64_t r1) {
+        double sum = 0;
+        for (int64_t r = r0; r < r1; ++r) {
+            const float* row = rows.data + r * rows.cols;
+            double row_sum = 0;
+            for (int64_t c = 0; c < rows.cols; ++c) row_sum += double(row[c]) * row[c];
+            sum += row_sum;
+        }
+        sums[r0 / kRowChunk] = sum;
+    });
+    double total = 0;
+    for (double s : sums) total += s;
+    return total;
+}
+
+// Reads every batch once (or views it, when the rows are in memory and need no centring),
+// centring rows if requested; calls use(m, first, rows) per matrix.
 template <typename Use>
 void pass(const RowBatches& batches, bool subtract_mean, std::vector<std::vector<float>>* means,
           std::vector<double>* energy, Progress& progress, std::string_view stage, Use&& use) {
     progress.begin(stage, static_cast<uint64_t>(batches.batches()));
-    std::vector<int64_t> first;
+    std::vector<int64_t> first, counts;
+    std::vector<const float*> data;
     std::vector<Matrix> block;
     for (int b = 0; b < batches.batches(); ++b) {
         progress.poll();
-        batches.read(b, first, block);
+        const bool viewed = !subtract_mean && batches.view(b, first, data, counts);
+        if (!viewed) {
+            batches.read(b, first, block);
+            data.resize(block.size());
+            counts.resize(block.size());
+        }
         for (int m = 0; m < batches.matrices(); ++m) {
-            Matrix& rows = block[m];
-            if (rows.rows() == 0) continue;
-            if (rows.cols() != batches.cols(m) || first[m] < 0 ||
-                first[m] + rows.rows() > batches.rows(m))
+            const int64_t cols = viewed ? batches.cols(m) : block[m].cols();
+            const int64_t count = viewed ? counts[m] : block[m].rows();
+            if (count == 0) continue;
+            if (cols != batches.cols(m) || first[m] < 0 || first[m] + count > batches.rows(m))
                 fail(
                     "factorization: batch {} gives matrix {} rows [{}, {}) × {} columns, expected "
                     "rows within {} × {}",
-                    b, m, first[m], first[m] + rows.rows(), rows.cols(), batches.rows(m),
-                    batches.cols(m));
-            if (subtract_mean) {
-                for (int64_t r = 0; r < rows.rows(); ++r) {
-                    const float mean = static_cast<float>(rows.row(r).cast<double>().mean());
-                    rows.row(r).array() -= mean;
-                    if (means) (*means)[m][first[m] + r] = mean;
+                    b, m, first[m], first[m] + count, cols, batches.rows(m), batches.cols(m));
+            if (!viewed) {
+                Matrix& rows = block[m];
+                if (subtract_mean) {
+                    parallel_for(0, rows.rows(), [&](int64_t r) {
+                        const float mean = static_cast<float>(rows.row(r).cast<double>().mean());
+                        rows.row(r).array() -= mean;
+                        if (means) (*means)[m][first[m] + r] = mean;
+                    });
                 }
+                data[m] = rows.data();
             }
-            if (energy) (*energy)[m] += rows.cast<double>().squaredNorm();
+            const Rows rows{data[m], count, cols};
+            if (energy) (*energy)[m] += squared_norm(rows);
             use(m, first[m], rows);
         }
         progress.advance();
@@ -69,37 +111,83 @@ void pass(const RowBatches& batches, bool subtract_mean, std::vector<std::vector
     progress.finish();
 }
 
-// y.middleRows(first, n) = rows · x, parallel over fixed row chunks.
-void multiply_rows(const Matrix& rows, const Matrix& x, int64_t first, Matrix& y) {
-    parallel_chunks(0, rows.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
-        y.middleRows(first + r0, r1 - r0).noalias() = rows.middleRows(r0, r1 - r0) * x;
+// y.middleRows(first, n) = rows · x, parallel over fixed row chunks, one sgemm per chunk.
+void multiply_rows(const Rows& rows, const Matrix& x, int64_t first, Matrix& y) {
+    const int64_t w = x.cols();
+    parallel_chunks(0, rows.rows, kRowChunk, [&](int64_t r0, int64_t r1) {
+        blas::sgemm(false, r1 - r0, w, rows.cols, rows.data + r0 * rows.cols, rows.cols, x.data(),
+                    w, 0.0f, y.data() + (first + r0) * w, w);
     });
 }
 
-// z += rowsᵀ · q.middleRows(first, n), parallel over fixed column slices.
-void multiply_transposed(const Matrix& rows, const Matrix& q, int64_t first, Matrix& z) {
-    const auto qb = q.middleRows(first, rows.rows());
-    parallel_chunks(0, rows.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
-        z.middleRows(c0, c1 - c0).noalias() += rows.middleCols(c0, c1 - c0).transpose() * qb;
+// zt += q.middleRows(first, n)ᵀ · rows (zt: w × cols, the transpose of z = Mᵀ q), parallel over
+// fixed column slices, one sgemm per slice. (Computing zᵀ rather than z lets OpenBLAS stream the
+// rows as the non-transposed operand: 1.2× faster at fmf's shapes, bench/gemm_pass.)
+void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matrix& zt) {
+    const int64_t w = q.cols();
+    parallel_chunks(0, rows.cols, kColumnSlice, [&](int64_t c0, int64_t c1) {
+        blas::sgemm(true, w, c1 - c0, rows.rows, q.data() + first * w, w, rows.data + c0, rows.cols,
+                    1.0f, zt.data() + c0, rows.cols);
     });
+}
+
+// Removes from `z` its components in the span of the orthonormal columns of `basis` (twice:
+// "twice is enough"), in double, with sums over fixed row chunks.
+void project_out(const Eigen::MatrixXd& basis, Eigen::MatrixXd& z) {
+    if (basis.cols() == 0) return;
+    const int64_t n = z.rows(), chunks = (n + kThinChunk - 1) / kThinChunk;
+    std::vector<Eigen::MatrixXd> parts(chunks);
+    for (int round = 0; round < 2; ++round) {
+        parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
+            parts[r0 / kThinChunk].noalias() =
+                basis.middleRows(r0, r1 - r0).transpose() * z.middleRows(r0, r1 - r0);
+        });
+        Eigen::MatrixXd c = parts[0];
+        for (int64_t i = 1; i < chunks; ++i) c += parts[i];
+        parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
+            z.middleRows(r0, r1 - r0).noalias() -= basis.middleRows(r0, r1 - r0) * c;
+        });
+    }
 }
 
 }  // namespace
 
-std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
-                                Progress& progress) {
+int svd_passes(const SvdOptions& options, bool transforms) {
+    const int q = options.power_iterations;
+    if (options.method == SvdMethod::kSubspace) return 2 + 2 * q;
+    return transforms ? 3 + 2 * q : 2 + q;
+}
+
+namespace {
+
+struct Shapes {
+    std::vector<int> rank, width;
+};
+
+Shapes check_options(const RowBatches& batches, const SvdOptions& options) {
     const int count = batches.matrices();
     if (options.rank < 1) fail("factorization: rank {} must be at least 1", options.rank);
-    if (options.oversampling < 0 || options.power_iterations < 0)
-        fail("factorization: oversampling and power iterations must not be negative");
-    std::vector<int> rank(count), width(count);
+    if (options.oversampling < 0 || options.power_iterations < 0 || options.block < 0)
+        fail("factorization: oversampling, power iterations and block must not be negative");
+    Shapes out;
+    out.rank.resize(count);
+    out.width.resize(count);
     for (int m = 0; m < count; ++m) {
         const int64_t smaller = std::min(batches.rows(m), batches.cols(m));
         if (smaller < 1) fail("factorization: matrix {} is empty", m);
-        rank[m] = static_cast<int>(std::min<int64_t>(options.rank, smaller));
-        width[m] = static_cast<int>(std::min<int64_t>(rank[m] + options.oversampling, smaller));
+        out.rank[m] = static_cast<int>(std::min<int64_t>(options.rank, smaller));
+        out.width[m] =
+            static_cast<int>(std::min<int64_t>(out.rank[m] + options.oversampling, smaller));
     }
-    const int total_passes = 2 + 2 * options.power_iterations;
+    return out;
+}
+
+std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions& options,
+                                    const Shapes& shapes, Progress& progress) {
+    const int count = batches.matrices();
+    const std::vector<int>& rank = shapes.rank;
+    const std::vector<int>& width = shapes.width;
+    const int total_passes = svd_passes(options);
     int pass_number = 0;
     auto stage = [&] {
         return fmt::format("factorizing: pass {} of {}", ++pass_number, total_passes);
@@ -125,7 +213,7 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
         const bool first_pass = pass_number == 0;
         pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
              first_pass ? &energy : nullptr, progress, stage(),
-             [&](int m, int64_t first, const Matrix& rows) {
+             [&](int m, int64_t first, const Rows& rows) {
                  multiply_rows(rows, maps ? operand[m] : basis[m], first, y[m]);
              });
         if (maps)
@@ -144,14 +232,16 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
                 operand[m] = basis[m];
                 maps->left(m, operand[m], true);
             }
-            z[m] = Matrix::Zero(batches.cols(m), width[m]);
+            z[m] = Matrix::Zero(width[m], batches.cols(m));  // zᵀ during the pass
         }
         pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
-             [&](int m, int64_t first, const Matrix& rows) {
+             [&](int m, int64_t first, const Rows& rows) {
                  multiply_transposed(rows, maps ? operand[m] : basis[m], first, z[m]);
              });
-        if (maps)
-            for (int m = 0; m < count; ++m) maps->right(m, z[m], false);
+        for (int m = 0; m < count; ++m) {
+            z[m].transposeInPlace();
+            if (maps) maps->right(m, z[m], false);
+        }
     };
     for (int i = 0; i < options.power_iterations; ++i) {
         transposed_pass();
@@ -182,6 +272,216 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
     return result;
 }
 
+// The next Krylov block: `z` made orthogonal to the blocks so far (basis.leftCols(used)) and
+// orthonormalized, into basis.middleCols(used, b). Columns that lie in the span already (a matrix
+// of lower rank than the blocks) are replaced by random directions, so that the blocks stay
+// orthonormal.
+void next_block(Eigen::MatrixXd& basis, int64_t used, Eigen::MatrixXd z, uint64_t seed) {
+    const int64_t b = z.cols();
+    Eigen::VectorXd before = z.colwise().norm();
+    project_out(basis.leftCols(used), z);
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> normal;
+    bool replaced = false;
+    for (int64_t c = 0; c < b; ++c) {
+        if (z.col(c).norm() > 1e-5 * before[c] && std::isfinite(z.col(c).norm())) continue;
+        for (int64_t r = 0; r < z.rows(); ++r) z(r, c) = normal(rng);
+        replaced = true;
+    }
+    if (replaced) project_out(basis.leftCols(used), z);
+    Eigen::HouseholderQR<Eigen::MatrixXd> qr(z);
+    basis.middleCols(used, b) = qr.householderQ() * Eigen::MatrixXd::Identity(z.rows(), b);
+    // Householder Q spans z's columns only where they are independent: project once more.
+    Eigen::MatrixXd block = basis.middleCols(used, b);
+    project_out(basis.leftCols(used), block);
+    Eigen::HouseholderQR<Eigen::MatrixXd> again(block);
+    basis.middleCols(used, b) = again.householderQ() * Eigen::MatrixXd::Identity(z.rows(), b);
+}
+
+// Rows of each matrix sampled from up to kSampleBatches batches spread evenly over the source,
+// evenly spaced within each batch, at most `want[m]` of them in all: the start of block Krylov.
+// Reading a few batches costs a few per cent of a pass; rows held in memory are copied only.
+constexpr int kSampleBatches = 16;
+std::vector<Matrix> sample_rows(const RowBatches& batches, const std::vector<int64_t>& want,
+                                bool subtract_mean, Progress& progress) {
+    const int count = batches.matrices(), nb = std::min(batches.batches(), kSampleBatches);
+    std::vector<Matrix> out(count);
+    std::vector<int64_t> taken(count, 0);
+    for (int m = 0; m < count; ++m) out[m].resize(want[m], batches.cols(m));
+    std::vector<int64_t> first, counts;
+    std::vector<const float*> data;
+    std::vector<Matrix> block;
+    progress.begin("factorizing: sampling rows for the start", static_cast<uint64_t>(nb));
+    for (int i = 0; i < nb; ++i) {
+        progress.poll();
+        const int b = static_cast<int>((int64_t(2 * i + 1) * batches.batches()) / (2 * nb));
+        const bool viewed = batches.view(b, first, data, counts);
+        if (!viewed) batches.read(b, first, block);
+        for (int m = 0; m < count; ++m) {
+            const int64_t n = viewed ? counts[m] : block[m].rows();
+            if (n == 0 || (!viewed && block[m].cols() != batches.cols(m))) continue;
+            const Eigen::Map<const Matrix> rows(viewed ? data[m] : block[m].data(), n,
+                                                batches.cols(m));
+            // This batch's share of what is still wanted from the batches left.
+            const int64_t share =
+                std::min<int64_t>(n, (want[m] - taken[m] + (nb - i) - 1) / std::max(1, nb - i));
+            for (int64_t j = 0; j < share; ++j) {
+                auto row = out[m].row(taken[m]++);
+                row = rows.row((2 * j + 1) * n / (2 * share));
+                if (subtract_mean) row.array() -= static_cast<float>(row.cast<double>().mean());
+            }
+        }
+        progress.advance();
+    }
+    progress.finish();
+    for (int m = 0; m < count; ++m) out[m].conservativeResize(taken[m], batches.cols(m));
+    return out;
+}
+
+// The first block: the b leading right singular vectors of the sampled rows S (from the s × s
+// Gram matrix S Sᵀ in double), completed by Gaussian columns where S has fewer than b rows.
+// For redundant data such as a BTF's images, the rows' leading subspace is close to the whole
+// matrix's: the Krylov blocks start near their goal instead of at random.
+Eigen::MatrixXd start_block(const Matrix& sampled, int64_t cols, int64_t b, uint64_t seed) {
+    Eigen::MatrixXd z(cols, b);
+    const int64_t s = sampled.rows(), taken = std::min(s, b);
+    if (taken > 0) {
+        const Eigen::MatrixXd rows = sampled.cast<double>();
+        const Eigen::MatrixXd gram = rows * rows.transpose();
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram);
+        z.leftCols(taken) =
+            rows.transpose() * eigen.eigenvectors().rightCols(taken).rowwise().reverse();
+    }
+    if (taken < b) z.rightCols(b - taken) = gaussian(cols, b - taken, seed).cast<double>();
+    return z;
+}
+
+std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& options,
+                              const Shapes& shapes, Progress& progress) {
+    const int count = batches.matrices();
+    const Transforms* maps = options.transforms;
+    // A random block X₀ and q + 1 blocks after it, b columns each, within min(rows, cols)
+    // columns in all; the blocks after X₀ must hold the rank.
+    std::vector<int> block(count), depth(count);
+    int passes_depth = 0;
+    for (int m = 0; m < count; ++m) {
+        const int64_t smaller = std::min(batches.rows(m), batches.cols(m));
+        const int64_t q = options.power_iterations, k = shapes.rank[m];
+        int64_t b =
+            options.block > 0 ? options.block : (2 * (k + options.oversampling) + q + 1) / (q + 2);
+        b = std::min(std::max(b, (k + q) / (q + 1)), smaller);
+        block[m] = static_cast<int>(b);
+        depth[m] = static_cast<int>(std::min<int64_t>(q + 1, smaller / b - 1));
+        if (int64_t(depth[m]) * b < k)
+            return subspace_iteration(batches, options, shapes, progress);
+        passes_depth = std::max(passes_depth, depth[m]);
+    }
+    const int total_passes = maps ? 1 + 2 * passes_depth : 1 + passes_depth;
+    int pass_number = 0;
+    auto stage = [&] {
+        return fmt::format("factorizing: pass {} of {}", ++pass_number, total_passes);
+    };
+
+    std::vector<std::vector<float>> means(count);
+    std::vector<double> energy(count, 0.0);
+    std::vector<Eigen::MatrixXd> basis(count);  // [X₀ … X_q], cols × (q + 1) b
+    std::vector<Matrix> ys(count);              // [M̃X₀ … M̃X_q], rows × (q + 1) b
+    std::vector<Matrix> operand(count), y(count), z(count);
+    std::vector<int64_t> want(count);
+    for (int m = 0; m < count; ++m) want[m] = std::min<int64_t>(4 * block[m], batches.rows(m));
+    const std::vector<Matrix> sampled = sample_rows(batches, want, options.subtract_mean, progress);
+    for (int m = 0; m < count; ++m) {
+        if (options.subtract_mean) means[m].assign(batches.rows(m), 0.0f);
+        const int64_t w = int64_t(depth[m] + 1) * block[m];
+        basis[m].resize(batches.cols(m), w);
+        ys[m].resize(batches.rows(m), w);
+        const uint64_t seed = options.seed + 7919 * uint64_t(m);
+        Matrix start = start_block(sampled[m], batches.cols(m), block[m], seed).cast<float>();
+        if (maps) maps->right(m, start, false);  // rows of M Rᵀ: R applied to the sampled rows
+        next_block(basis[m], 0, start.cast<double>(), seed);
+    }
+    for (int i = 0; i <= passes_depth; ++i) {
+        // This pass: Y = M̃ Xᵢ and, without maps, Z = M̃ᵀ Y from the same rows.
+        const bool fused = !maps;
+        for (int m = 0; m < count; ++m) {
+            if (i > depth[m]) continue;
+            operand[m] = basis[m].middleCols(int64_t(i) * block[m], block[m]).cast<float>();
+            if (maps) maps->right(m, operand[m], true);
+            y[m] = Matrix::Zero(batches.rows(m), block[m]);
+            if (fused && i < depth[m]) z[m] = Matrix::Zero(block[m], batches.cols(m));  // zᵀ
+        }
+        const bool first_pass = i == 0;
+        pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
+             first_pass ? &energy : nullptr, progress, stage(),
+             [&](int m, int64_t first, const Rows& rows) {
+                 if (i > depth[m]) return;
+                 multiply_rows(rows, operand[m], first, y[m]);
+                 if (fused && i < depth[m]) multiply_transposed(rows, y[m], first, z[m]);
+             });
+        for (int m = 0; m < count; ++m) {
+            if (i > depth[m]) continue;
+            if (maps) maps->left(m, y[m], false);
+            ys[m].middleCols(int64_t(i) * block[m], block[m]) = y[m];
+        }
+        if (i == passes_depth) break;
+        if (maps) {
+            // Z = R Mᵀ (Lᵀ Y), in a pass of its own.
+            for (int m = 0; m < count; ++m) {
+                if (i >= depth[m]) continue;
+                operand[m] = y[m];
+                maps->left(m, operand[m], true);
+                z[m] = Matrix::Zero(block[m], batches.cols(m));  // zᵀ
+            }
+            pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
+                 [&](int m, int64_t first, const Rows& rows) {
+                     if (i < depth[m]) multiply_transposed(rows, operand[m], first, z[m]);
+                 });
+        }
+        for (int m = 0; m < count; ++m) {
+            if (i >= depth[m]) continue;
+            z[m].transposeInPlace();
+            if (maps) maps->right(m, z[m], false);
+            next_block(basis[m], int64_t(i + 1) * block[m], z[m].cast<double>(),
+                       options.seed + 7919 * uint64_t(m) + uint64_t(i + 1));
+        }
+    }
+
+    // Rayleigh–Ritz: M̃ V ≈ Uy S Wᵀ (V = the blocks), so M̃ ≈ M̃ V Vᵀ ≈ Uy S (V W)ᵀ, the best
+    // rank-k approximation with rows in span(V).
+    std::vector<Svd> result(count);
+    for (int m = 0; m < count; ++m) {
+        const int k = shapes.rank[m];
+        const Eigen::MatrixXd yd = ys[m].cast<double>();
+        Eigen::HouseholderQR<Eigen::MatrixXd> qr(yd);
+        const int64_t w = yd.cols();
+        const Eigen::MatrixXd r =
+            qr.matrixQR().topRows(w).triangularView<Eigen::Upper>().toDenseMatrix();
+        Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Svd& out = result[m];
+        Eigen::MatrixXd uq = Eigen::MatrixXd::Zero(yd.rows(), k);
+        uq.topRows(w) = svd.matrixU().leftCols(k);
+        uq.applyOnTheLeft(qr.householderQ());
+        out.u = uq.cast<float>();
+        out.v = (basis[m] * svd.matrixV().leftCols(k)).cast<float>();
+        out.sigma = svd.singularValues().head(k).cast<float>();
+        out.mean = std::move(means[m]);
+        out.total_energy = energy[m];
+        out.sketch_energy = svd.singularValues().squaredNorm();
+    }
+    return result;
+}
+
+}  // namespace
+
+std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
+                                Progress& progress) {
+    const Shapes shapes = check_options(batches, options);
+    const blas::SerialBlas serial;
+    return options.method == SvdMethod::kBlockKrylov
+               ? block_krylov(batches, options, shapes, progress)
+               : subspace_iteration(batches, options, shapes, progress);
+}
+
 std::vector<Factors> untransformed_factors(const RowBatches& batches, const Transforms& transforms,
                                            const std::vector<Svd>& svds,
                                            const std::vector<int>& keep, Progress& progress) {
@@ -207,14 +507,16 @@ std::vector<Factors> untransformed_factors(const RowBatches& batches, const Tran
         left[m] = svd.u.leftCols(k);
         transforms.left(m, left[m], true);
         out[m].a = Matrix::Zero(batches.rows(m), k);
-        out[m].b = Matrix::Zero(batches.cols(m), k);
+        out[m].b = Matrix::Zero(k, batches.cols(m));  // bᵀ during the pass
     }
+    const blas::SerialBlas serial;
     pass(batches, centred, nullptr, nullptr, progress, "factorizing: untransforming",
-         [&](int m, int64_t first, const Matrix& rows) {
+         [&](int m, int64_t first, const Rows& rows) {
              if (keep[m] == 0) return;
              multiply_rows(rows, right[m], first, out[m].a);
              multiply_transposed(rows, left[m], first, out[m].b);
          });
+    for (Factors& f : out) f.b.transposeInPlace();
     return out;
 }
 
@@ -256,6 +558,21 @@ void MemoryRows::read(int batch, std::vector<int64_t>& first, std::vector<Matrix
         first[m] = begin;
         out[m] = m_matrices[m]->middleRows(begin, end - begin);
     }
+}
+
+bool MemoryRows::view(int batch, std::vector<int64_t>& first, std::vector<const float*>& data,
+                      std::vector<int64_t>& rows) const {
+    first.assign(m_matrices.size(), 0);
+    data.assign(m_matrices.size(), nullptr);
+    rows.assign(m_matrices.size(), 0);
+    for (size_t m = 0; m < m_matrices.size(); ++m) {
+        const int64_t begin =
+            std::min<int64_t>(int64_t(batch) * m_batch_rows, m_matrices[m]->rows());
+        first[m] = begin;
+        rows[m] = std::min<int64_t>(begin + m_batch_rows, m_matrices[m]->rows()) - begin;
+        data[m] = m_matrices[m]->data() + begin * m_matrices[m]->cols();
+    }
+    return true;
 }
 
 }  // namespace btf::factor

@@ -1,20 +1,34 @@
 #pragma once
-/// Truncated SVDs of BTF matrices too large for memory: the randomized range finder with
-/// oversampling and power iterations of Halko, Martinsson and Tropp (2011, algorithms 4.3/4.4
-/// and 5.1), run as streaming passes over the rows of one or more matrices.
+/// Truncated SVDs of BTF matrices too large for memory, run as streaming passes over the rows of
+/// one or more matrices. Two methods:
 ///
-/// A pass reads every row batch once and multiplies it with a thin matrix; memory is bounded by
-/// the thin factors (rows × l and cols × l floats, l = rank + oversampling) plus one batch, never
-/// the whole matrix. q power iterations cost 2 + 2q passes. Several matrices that share the
-/// batches (the three colour planes of a decorrelated factorization, the view groups of
-/// pca-views) are factorized in the same passes, so the source is read only 2 + 2q times.
+/// - Subspace iteration: the randomized range finder with oversampling and q power iterations of
+///   Halko, Martinsson and Tropp (2011, algorithms 4.3/4.4 and 5.1), 2 + 2q passes.
+/// - Block Krylov (Musco and Musco 2015, on the column side): blocks X₀ (below),
+///   X_{i+1} = orth(MᵀM Xᵢ ⊥ X₀…Xᵢ), q + 2 blocks of b columns, then the best rank-k
+///   approximation within their span (Rayleigh–Ritz: the SVD of M·[X₀ … X_{q+1}]). Each pass
+///   reads the batches once and computes both Y = M Xᵢ and Z = Mᵀ Y from the rows in hand, so
+///   q + 2 passes; for equal accuracy it needs about half the products of subspace iteration.
+///   X₀ is not Gaussian but the b leading right singular vectors of 4b rows sampled evenly
+///   from up to 16 batches (read once more: 16 of fmf's 81 views): a BTF's images are so
+///   alike that their leading subspace is close to the whole matrix's. Matrices too small for
+///   the blocks ((q + 2)·b > min(rows, cols) or (q + 1)·b < rank) fall back to subspace
+///   iteration.
 ///
-/// Numerics are deterministic for a given seed: row products are computed per batch, column
-/// products in fixed column slices, independent of the number of threads.
+/// A pass reads every row batch once and multiplies it with thin matrices; memory is bounded by
+/// the thin factors (rows × l and cols × l floats, l the sketch width) plus one batch, never
+/// the whole matrix. Several matrices that share the batches (the three colour planes of a
+/// decorrelated factorization, the view groups of pca-views) are factorized in the same passes.
+///
+/// Numerics are deterministic for a given seed: row products are computed in fixed row chunks,
+/// column products in fixed column slices, each by OpenBLAS on one thread (util/blas.h), sums in
+/// a fixed order, independent of the number of threads.
 ///
 /// Optional linear maps around the streamed matrices (Transforms) factorize L·M·Rᵀ instead of M
 /// without ever forming it: only the thin sketches are mapped (the perceptual codec's CSF filters,
 /// Guthe et al. 2009 §5). untransformed_factors() then returns to M's space in one more pass.
+/// With a left map, block Krylov cannot combine the two products of a block in one pass (L mixes
+/// rows of different batches) and takes 2q + 3 passes.
 
 #include <Eigen/Core>
 
@@ -40,6 +54,14 @@ class RowBatches {
     /// matrix m (out[m] may have no rows). Called from one thread at a time; may use worker
     /// threads inside. `first` and `out` are resized to matrices().
     virtual void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const = 0;
+    /// Rows held in memory already: like read(), but gives pointers to them instead of copies
+    /// (row-major, contiguous, cols(m) floats per row; null where a matrix has no rows in the
+    /// batch). Returns false (the default) when the rows must be read.
+    virtual bool view(int batch, std::vector<int64_t>& first, std::vector<const float*>& data,
+                      std::vector<int64_t>& rows) const {
+        (void)batch, (void)first, (void)data, (void)rows;
+        return false;
+    }
 };
 
 /// Linear maps L_m (rows × rows) and R_m (cols × cols) around matrix m. They are applied to thin
@@ -55,10 +77,19 @@ class Transforms {
     virtual void right(int matrix, Matrix& z, bool transpose) const = 0;
 };
 
+enum class SvdMethod { kSubspace, kBlockKrylov };
+
 struct SvdOptions {
-    int rank = 16;             ///< components kept (clamped to min(rows, cols))
-    int oversampling = 10;     ///< extra random vectors of the range finder
-    int power_iterations = 2;  ///< q: sharper for slowly decaying spectra, 2 passes each
+    int rank = 16;  ///< components kept (clamped to min(rows, cols))
+    SvdMethod method = SvdMethod::kSubspace;
+    /// Subspace: extra random vectors of the range finder. Block Krylov: the blocks span at
+    /// least 2 · (rank + oversampling) columns together, unless `block` says otherwise.
+    int oversampling = 10;
+    /// q. Subspace: power iterations, sharper for slowly decaying spectra, 2 passes each. Block
+    /// Krylov: q + 2 blocks, one pass each.
+    int power_iterations = 2;
+    /// Block Krylov: columns per block (0: ⌈2 · (rank + oversampling) / (q + 2)⌉).
+    int block = 0;
     /// Subtract each row's mean over the columns before factorizing (PCA with row-mean centring).
     bool subtract_mean = false;
     uint64_t seed = 1;
@@ -81,8 +112,8 @@ struct Svd {
     double sketch_energy = 0;
 };
 
-/// Randomized truncated SVDs of every matrix of `batches` (one result per matrix) in
-/// 2 + 2·power_iterations passes. Reports one progress unit per batch read.
+/// Randomized truncated SVDs of every matrix of `batches` (one result per matrix) by
+/// options.method. Reports one progress unit per batch read.
 std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
                                 Progress& progress = Progress::none());
 
@@ -104,6 +135,10 @@ std::vector<Factors> untransformed_factors(const RowBatches& batches, const Tran
                                            const std::vector<int>& keep,
                                            Progress& progress = Progress::none());
 
+/// Passes over the source that randomized_svd() makes with these options (with `transforms`: a
+/// left map), for matrices large enough for block Krylov's blocks.
+int svd_passes(const SvdOptions& options, bool transforms = false);
+
 /// Exact truncated SVD of an in-memory matrix (Eigen BDCSVD in double): the reference for tests.
 Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean);
 
@@ -117,6 +152,8 @@ class MemoryRows final : public RowBatches {
     int64_t cols(int m) const override { return m_matrices[m]->cols(); }
     int batches() const override { return m_batches; }
     void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override;
+    bool view(int batch, std::vector<int64_t>& first, std::vector<const float*>& data,
+              std::vector<int64_t>& rows) const override;
 
   private:
     std::vector<const Matrix*> m_matrices;

@@ -28,6 +28,22 @@ Matrix decaying(int rows, int cols, uint64_t seed) {
     return (qa * s.asDiagonal() * qb.transpose()).cast<float>();
 }
 
+// Every test of this suite runs for both methods.
+class RandomizedSvd : public ::testing::TestWithParam<SvdMethod> {
+  protected:
+    SvdOptions with_method() const {
+        SvdOptions options;
+        options.method = GetParam();
+        return options;
+    }
+};
+
+INSTANTIATE_TEST_SUITE_P(Methods, RandomizedSvd,
+                         ::testing::Values(SvdMethod::kSubspace, SvdMethod::kBlockKrylov),
+                         [](const auto& info) {
+                             return info.param == SvdMethod::kSubspace ? "Subspace" : "Krylov";
+                         });
+
 double truncation_error(const Matrix& m, const Svd& svd) {
     Eigen::MatrixXd r = m.cast<double>();
     if (!svd.mean.empty())
@@ -37,13 +53,13 @@ double truncation_error(const Matrix& m, const Svd& svd) {
     return r.norm();
 }
 
-TEST(RandomizedSvd, MatchesTheExactTruncatedSvd) {
+TEST_P(RandomizedSvd, MatchesTheExactTruncatedSvd) {
     // Eckart–Young: the exact truncated SVD is optimal; the randomized one must come within 1 %.
     const Matrix m = decaying(120, 300, 3);
     for (int rank : {4, 16, 40}) {
         const Svd exact = exact_svd(m, rank, false);
         MemoryRows rows({&m}, 7);
-        SvdOptions options;
+        SvdOptions options = with_method();
         options.rank = rank;
         const Svd fast = randomized_svd(rows, options)[0];
         const double e_exact = truncation_error(m, exact), e_fast = truncation_error(m, fast);
@@ -58,7 +74,7 @@ TEST(RandomizedSvd, MatchesTheExactTruncatedSvd) {
     }
 }
 
-TEST(RandomizedSvd, RecoversALowRankMatrixExactly) {
+TEST_P(RandomizedSvd, RecoversALowRankMatrixExactly) {
     std::mt19937_64 rng(5);
     std::normal_distribution<float> normal;
     Matrix a(90, 6), b(6, 70);
@@ -66,18 +82,18 @@ TEST(RandomizedSvd, RecoversALowRankMatrixExactly) {
     for (int64_t i = 0; i < b.size(); ++i) b.data()[i] = normal(rng);
     const Matrix m = a * b;
     MemoryRows rows({&m}, 16);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 6;
     options.power_iterations = 0;
     const Svd svd = randomized_svd(rows, options)[0];
     EXPECT_LT(truncation_error(m, svd), 1e-4 * m.norm());
 }
 
-TEST(RandomizedSvd, MeanCentringMatchesTheExactCentredSvd) {
+TEST_P(RandomizedSvd, MeanCentringMatchesTheExactCentredSvd) {
     Matrix m = decaying(60, 150, 9);
     for (int64_t r = 0; r < m.rows(); ++r) m.row(r).array() += 0.5f + 0.01f * r;
     MemoryRows rows({&m}, 10);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 8;
     options.subtract_mean = true;
     const Svd fast = randomized_svd(rows, options)[0];
@@ -87,10 +103,10 @@ TEST(RandomizedSvd, MeanCentringMatchesTheExactCentredSvd) {
     EXPECT_LE(truncation_error(m, fast), 1.01 * truncation_error(m, exact));
 }
 
-TEST(RandomizedSvd, FactorizesSeveralMatricesInTheSamePasses) {
+TEST_P(RandomizedSvd, FactorizesSeveralMatricesInTheSamePasses) {
     const Matrix a = decaying(50, 80, 1), b = decaying(30, 80, 2);
     MemoryRows rows({&a, &b}, 9);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 5;
     const auto both = randomized_svd(rows, options);
     ASSERT_EQ(both.size(), 2u);
@@ -98,10 +114,10 @@ TEST(RandomizedSvd, FactorizesSeveralMatricesInTheSamePasses) {
     EXPECT_LE(truncation_error(b, both[1]), 1.01 * truncation_error(b, exact_svd(b, 5, false)));
 }
 
-TEST(RandomizedSvd, IsDeterministicForAnyThreadCount) {
+TEST_P(RandomizedSvd, IsDeterministicForAnyThreadCount) {
     const Matrix m = decaying(80, 5000, 4);
     MemoryRows rows({&m}, 13);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 10;
     Svd one, two;
     {
@@ -117,14 +133,111 @@ TEST(RandomizedSvd, IsDeterministicForAnyThreadCount) {
     EXPECT_EQ(one.sigma, two.sigma);
 }
 
-TEST(RandomizedSvd, ClampsTheRankToTheMatrix) {
+TEST_P(RandomizedSvd, ClampsTheRankToTheMatrix) {
     const Matrix m = decaying(5, 40, 8);
     MemoryRows rows({&m}, 2);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 12;
     const Svd svd = randomized_svd(rows, options)[0];
     EXPECT_EQ(svd.sigma.size(), 5);
     EXPECT_LT(truncation_error(m, svd), 1e-4 * m.norm());
+}
+
+// The rows of a MemoryRows, handed out only as copies (as a file-backed source does), counting
+// the batches read.
+class CopiedRows final : public RowBatches {
+  public:
+    explicit CopiedRows(const MemoryRows& rows) : m_rows(rows) {}
+    int matrices() const override { return m_rows.matrices(); }
+    int64_t rows(int m) const override { return m_rows.rows(m); }
+    int64_t cols(int m) const override { return m_rows.cols(m); }
+    int batches() const override { return m_rows.batches(); }
+    void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override {
+        ++reads;
+        m_rows.read(batch, first, out);
+    }
+    mutable int reads = 0;
+
+  private:
+    const MemoryRows& m_rows;
+};
+
+TEST_P(RandomizedSvd, RowsInMemoryGiveTheSameBitsAsRowsRead) {
+    // MemoryRows multiplies its rows where they are; a source's rows are read into a batch.
+    const Matrix a = decaying(70, 3000, 11), b = decaying(40, 3000, 12);
+    const MemoryRows viewed({&a, &b}, 9);
+    const CopiedRows copied(viewed);
+    SvdOptions options = with_method();
+    options.rank = 7;
+    const auto x = randomized_svd(viewed, options), y = randomized_svd(copied, options);
+    // Block Krylov reads up to 16 batches once more for its start.
+    const int start = GetParam() == SvdMethod::kBlockKrylov ? std::min(16, viewed.batches()) : 0;
+    EXPECT_EQ(copied.reads, svd_passes(options) * viewed.batches() + start);
+    for (int m = 0; m < 2; ++m) {
+        EXPECT_EQ(x[m].u, y[m].u);
+        EXPECT_EQ(x[m].v, y[m].v);
+        EXPECT_EQ(x[m].sigma, y[m].sigma);
+        EXPECT_EQ(x[m].total_energy, y[m].total_energy);
+    }
+}
+
+TEST(BlockKrylov, ReadsTheSourceQPlusTwoTimes) {
+    const Matrix m = decaying(60, 400, 13);
+    const MemoryRows memory({&m}, 8);
+    for (int q : {0, 1, 4}) {
+        const CopiedRows rows(memory);
+        SvdOptions options;
+        options.method = SvdMethod::kBlockKrylov;
+        options.rank = 6;
+        options.power_iterations = q;
+        randomized_svd(rows, options);
+        EXPECT_EQ(svd_passes(options), q + 2);
+        // And the 8 batches once more for the start: rows sampled from them.
+        EXPECT_EQ(rows.reads, (q + 2) * memory.batches() + 8) << "q = " << q;
+    }
+    SvdOptions subspace;
+    subspace.power_iterations = 3;
+    EXPECT_EQ(svd_passes(subspace), 8);
+}
+
+TEST(BlockKrylov, MatchesSubspaceIterationWithFewerPassesAndProducts) {
+    // A slowly decaying spectrum: block Krylov with q = 3 (5 passes, 9 products of 12 columns)
+    // against subspace iteration with q = 3 (8 passes of 30 columns).
+    const Matrix m = decaying(200, 600, 14);
+    const MemoryRows rows({&m}, 16);
+    SvdOptions krylov, subspace;
+    krylov.method = SvdMethod::kBlockKrylov;
+    krylov.rank = subspace.rank = 20;
+    krylov.power_iterations = subspace.power_iterations = 3;
+    const double exact = truncation_error(m, exact_svd(m, 20, false));
+    const double k = truncation_error(m, randomized_svd(rows, krylov)[0]);
+    const double s = truncation_error(m, randomized_svd(rows, subspace)[0]);
+    EXPECT_LE(k, 1.001 * s);
+    EXPECT_LE(k, 1.01 * exact);
+    EXPECT_GE(k, exact * (1 - 1e-4));
+}
+
+TEST(BlockKrylov, KeepsItsBlocksOrthonormalForALowRankMatrix) {
+    // Rank 3, but 5 blocks of 8: the blocks after the second find nothing new and must still be
+    // orthonormal, or the Rayleigh–Ritz step would invent energy.
+    std::mt19937_64 rng(15);
+    std::normal_distribution<float> normal;
+    Matrix a(50, 3), b(3, 120);
+    for (int64_t i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
+    for (int64_t i = 0; i < b.size(); ++i) b.data()[i] = normal(rng);
+    const Matrix m = a * b;
+    const MemoryRows rows({&m}, 7);
+    SvdOptions options;
+    options.method = SvdMethod::kBlockKrylov;
+    options.rank = 5;
+    options.block = 8;
+    options.power_iterations = 3;
+    const Svd svd = randomized_svd(rows, options)[0];
+    EXPECT_LT(truncation_error(m, svd), 1e-4 * m.norm());
+    EXPECT_LE(svd.sketch_energy, svd.total_energy * (1 + 1e-5));
+    EXPECT_LT((svd.u.transpose() * svd.u - Matrix::Identity(5, 5)).norm(), 1e-4);
+    EXPECT_LT((svd.v.transpose() * svd.v - Matrix::Identity(5, 5)).norm(), 1e-4);
+    EXPECT_LT(svd.sigma[3], 1e-4 * svd.sigma[0]);
 }
 
 // Explicit linear maps around a matrix: L (rows × rows) and R (cols × cols), neither symmetric.
@@ -163,12 +276,12 @@ Eigen::MatrixXd product(const Svd& svd, int k) {
            svd.v.leftCols(k).cast<double>().transpose();
 }
 
-TEST(TransformedSvd, FactorizesTheTransformedMatrixWithoutFormingIt) {
+TEST_P(RandomizedSvd, TransformedFactorizesTheTransformedMatrixWithoutFormingIt) {
     const Matrix m = decaying(40, 90, 21);
     const DenseTransforms maps(invertible(40, 1), invertible(90, 2));
     const Matrix transformed = (maps.l() * m.cast<double>() * maps.r().transpose()).cast<float>();
     MemoryRows rows({&m}, 7);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 6;
     options.transforms = &maps;
     const Svd fast = randomized_svd(rows, options)[0];
@@ -205,12 +318,12 @@ TEST(TransformedSvd, UntransformedFactorsEqualTheInverseTransformOfTheApproximat
     }
 }
 
-TEST(TransformedSvd, UntransformedFactorsOfACentredRandomizedSvd) {
+TEST_P(RandomizedSvd, TransformedUntransformedFactorsOfACentredRandomizedSvd) {
     Matrix m = decaying(30, 50, 6);
     for (int64_t r = 0; r < m.rows(); ++r) m.row(r).array() += 1.0f + 0.05f * r;
     const DenseTransforms maps(invertible(30, 7), invertible(50, 8));
     MemoryRows rows({&m}, 4);
-    SvdOptions options;
+    SvdOptions options = with_method();
     options.rank = 30;  // full rank: the sketch is exact
     options.subtract_mean = true;
     options.transforms = &maps;

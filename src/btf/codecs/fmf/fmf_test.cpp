@@ -263,7 +263,7 @@ TEST(Fmf, RejectsBadParameters) {
                   encode(source, Params({{"componets", "3"}}));
               }),
               "codec fmf: unknown parameter 'componets' (known: components, colour, log, log-eps, "
-              "mean, quantize, oversampling, power-iterations, seed)");
+              "mean, quantize, svd, oversampling, power-iterations, block, seed)");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"components", "0"}}));
               }),

@@ -21,7 +21,9 @@ struct Options {
     factor::ColourHandling colour;
     int iterations = 20;  ///< Lloyd iterations of k-means at most
     int projection = 32;  ///< rank R of the projection the texels are clustered in
+    factor::SvdMethod svd = factor::SvdMethod::kSubspace;
     int oversampling = 10;
+    int block = 0;
     int power_iterations = 2;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;

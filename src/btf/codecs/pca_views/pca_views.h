@@ -18,7 +18,9 @@ struct Options {
     int views_per_group = 1;  ///< k; k ≥ number of views gives one group (PCA-BTF)
     int components = 8;       ///< C per view group (over all planes when colour is decorrelated)
     factor::ColourHandling colour;
+    factor::SvdMethod svd = factor::SvdMethod::kSubspace;
     int oversampling = 10;
+    int block = 0;
     int power_iterations = 2;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;

@@ -30,7 +30,9 @@ struct Options {
     /// Coarsest eigen-ABRDF level omission may choose: level j keeps ⌈n / 2^j⌉ of the views and
     /// of the lights (factor/angular_levels.h; only levels keeping at least 3 of each).
     int max_angular_level = 2;
+    factor::SvdMethod svd = factor::SvdMethod::kSubspace;
     int oversampling = 10;
+    int block = 0;
     int power_iterations = 3;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;

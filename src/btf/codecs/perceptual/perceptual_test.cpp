@@ -323,8 +323,8 @@ TEST(Perceptual, RejectsBadParameters) {
                   encode(source, Params({{"sped", "3"}}));
               }),
               "codec perceptual: unknown parameter 'sped' (known: components, resolution, speed, "
-              "mean, csf, quality, max-level, max-angular-level, quantize, oversampling, "
-              "power-iterations, seed)");
+              "mean, csf, quality, max-level, max-angular-level, quantize, svd, oversampling, "
+              "power-iterations, block, seed)");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"quality", "1.5"}}));
               }),
