@@ -3,9 +3,10 @@
 // The BTF as one matrix: rows are the angular samples (view · nL + light, times the three colour
 // channels in `rgb` mode), columns the texels. A truncated SVD keeps C components; a value is
 //     mean(row) + Σ_k a(row, k) · b(texel, k)      (a = U, b = S·V)
-// The SVD is a randomized one (Halko–Martinsson–Tropp): a Gaussian sketch, q power iterations and
-// a small exact SVD, computed in 2 + 2q streaming passes over the source, one view's images at a
-// time, so memory stays at the factors plus one view even for a BTF larger than RAM.
+// The SVD is a randomized one (factor/rsvd.h): by default block Krylov, q + 2 = 3 streaming passes
+// over the source, or Halko–Martinsson–Tropp subspace iteration (svd=subspace, 2 + 2q passes),
+// one view's images at a time, so memory stays at the factors plus one view even for a BTF larger
+// than RAM.
 //
 // Parameters: schema() below declares each once (name, range, help; the default is the Options
 // initializer in fmf.h); `btf codecs` lists them. How components are counted: rgb keeps C of the

@@ -16,8 +16,12 @@ struct Options {
     int components = 32;  ///< total components C (over all planes when colour is decorrelated)
     factor::ColourHandling colour;
     bool subtract_mean = false;  ///< factorize the matrix minus its mean ABRDF (row means)
+    /// Block Krylov with q = 1 (3 passes): the fastest configuration within 1 % of the
+    /// Eckart–Young optimum on every synthetic preset (docs/benchmarks.md, issue 22).
+    factor::SvdMethod svd = factor::SvdMethod::kBlockKrylov;
     int oversampling = 10;
-    int power_iterations = 3;
+    int block = 0;
+    int power_iterations = 1;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;
 };
