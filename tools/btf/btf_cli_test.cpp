@@ -56,6 +56,14 @@ TEST_F(BtfCli, HelpListsEverySubcommand) {
     for (const char* sub : subs) EXPECT_EQ(run(std::string(sub) + " --help").code, 0) << sub;
 }
 
+TEST_F(BtfCli, VerboseNamesTheOpenBlasKernelAndTheThreads) {
+    const CliResult r = run("--verbose --threads 1 codecs");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("btf: 1 worker threads; OpenBLAS "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(", kernel "), std::string::npos) << r.output;
+    EXPECT_EQ(run("codecs").output.find("kernel"), std::string::npos);
+}
+
 TEST_F(BtfCli, BadInputGivesOneLineAndNonZeroExit) {
     CliResult r = run("info " + path("missing.h5"));
     EXPECT_EQ(r.code, 1);

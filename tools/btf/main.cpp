@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "btf/util/atomic_file.h"
+#include "btf/util/blas.h"
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
@@ -88,6 +89,10 @@ int main(int argc, char** argv) {
     app.add_option("--threads", global.threads, "worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     app.add_flag("-q,--quiet", global.quiet, "no progress output");
+    bool verbose = false;
+    app.add_flag("-v,--verbose", verbose,
+                 "say on stderr which OpenBLAS kernel runs the factorization's products and how "
+                 "many worker threads run");
     int64_t max_image_pixels = 0;
     std::string max_alloc;
     app.add_option("--max-image-pixels", max_image_pixels,
@@ -127,6 +132,9 @@ int main(int argc, char** argv) {
         if (allow_hdf5_external) limits.allow_hdf5_external = true;
         btf::set_limits(limits);
         btf::ThreadLimit limit(global.threads);
+        if (verbose)
+            std::fprintf(stderr, "btf: %d worker threads; %s\n", btf::worker_threads(),
+                         btf::blas::description().c_str());
         for (const Command& command : commands)
             if (command.parser->parsed()) command.run();
     } catch (const CLI::ParseError& e) {

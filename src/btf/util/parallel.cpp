@@ -14,4 +14,9 @@ ThreadLimit::~ThreadLimit() {
     delete static_cast<tbb::global_control*>(m_control);
 }
 
+int worker_threads() {
+    return static_cast<int>(
+        tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+}
+
 }  // namespace btf

@@ -32,6 +32,9 @@ void parallel_chunks(int64_t begin, int64_t end, int64_t grain, Fn&& fn) {
     });
 }
 
+/// The number of worker threads parallel loops use now (all cores, or a ThreadLimit's).
+int worker_threads();
+
 /// Limits btfkit's worker threads for the lifetime of the returned object (0 = all cores).
 class ThreadLimit {
   public:
