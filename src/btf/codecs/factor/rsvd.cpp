@@ -346,11 +346,21 @@ Eigen::MatrixXd start_block(const Matrix& sampled, int64_t cols, int64_t b, uint
     Eigen::MatrixXd z(cols, b);
     const int64_t s = sampled.rows(), taken = std::min(s, b);
     if (taken > 0) {
-        const Eigen::MatrixXd rows = sampled.cast<double>();
-        const Eigen::MatrixXd gram = rows * rows.transpose();
+        // S Sᵀ over fixed column slices in float, the slices summed in double in order.
+        const int64_t slices = (cols + kThinChunk - 1) / kThinChunk;
+        std::vector<Matrix> parts(slices);
+        parallel_chunks(0, cols, kThinChunk, [&](int64_t c0, int64_t c1) {
+            const auto slice = sampled.middleCols(c0, c1 - c0);
+            parts[c0 / kThinChunk].noalias() = slice * slice.transpose();
+        });
+        Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(s, s);
+        for (const Matrix& part : parts) gram += part.cast<double>();
         const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram);
-        z.leftCols(taken) =
-            rows.transpose() * eigen.eigenvectors().rightCols(taken).rowwise().reverse();
+        const Matrix lead = eigen.eigenvectors().rightCols(taken).rowwise().reverse().cast<float>();
+        parallel_chunks(0, cols, kThinChunk, [&](int64_t c0, int64_t c1) {
+            z.block(c0, 0, c1 - c0, taken) =
+                (sampled.middleCols(c0, c1 - c0).transpose() * lead).cast<double>();
+        });
     }
     if (taken < b) z.rightCols(b - taken) = gaussian(cols, b - taken, seed).cast<double>();
     return z;

@@ -12,6 +12,7 @@
 #include "btf/codecs/factor/model.h"
 #include "btf/io/function_source.h"
 #include "btf/testing/support.h"
+#include "btf/util/parallel.h"
 
 namespace btf {
 namespace {
@@ -255,6 +256,23 @@ TEST(Fmf, PackageRoundTripThroughBytes) {
                   direct->eval_sample(3, 4, v, v % source.num_lights()));
     EXPECT_EQ(back.header.at("params").at("quantize"), "u8");
     EXPECT_EQ(back.header.at("raw_bytes_8bit"), 10 * 8 * 9 * 12 * 3);
+}
+
+TEST(Fmf, PackagesAreTheSameBytesForAnyThreadCount) {
+    // 4096 texels (two 2048-column slices of the transposed products) and 150 rows per view
+    // (two 128-row chunks of the direct products), for both SVD methods.
+    const FunctionSource source = small_source(64, 9, 50);
+    for (const std::string svd : {"krylov", "subspace"}) {
+        const Params params({{"components", "9"}, {"svd", svd}});
+        std::vector<uint8_t> bytes[3];
+        for (int i = 0; i < 3; ++i) {
+            ThreadLimit limit(i == 0 ? 1 : i == 1 ? 2 : 0);
+            Package p = encode(source, params);
+            bytes[i] = encode_package(p);
+        }
+        EXPECT_EQ(bytes[0], bytes[1]) << svd;
+        EXPECT_EQ(bytes[0], bytes[2]) << svd;
+    }
 }
 
 TEST(Fmf, RejectsBadParameters) {
