@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "btf/codecs/factor/params.h"
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/synth/synth.h"
 
@@ -55,6 +56,11 @@ int main(int argc, char** argv) {
     app.add_option("--seed", seed, "synthesis seed")->capture_default_str();
     app.add_option("--preset", preset, "synthetic preset")->capture_default_str();
     app.add_option("--components", ranks, "ranks to compare")->delimiter(',');
+    std::vector<std::string> configs = {"default"};
+    app.add_option("--configs", configs,
+                   "randomized SVD configurations: default, or method:q[:block] "
+                   "(subspace:3, krylov:2:40)")
+        ->delimiter(',');
     CLI11_PARSE(app, argc, argv);
     try {
         const DirectionSet& ubo = DirectionSet::ubo81();
@@ -105,29 +111,48 @@ int main(int argc, char** argv) {
         const Eigen::VectorXd& lambda = eigen.eigenvalues();  // ascending
 
         std::printf(
-            "| C | exact rel. error | fmf rel. error | ratio fmf / exact | fmf, f16 package | "
-            "fmf time |\n|---|---|---|---|---|---|\n");
-        for (int c : ranks) {
-            double tail = 0;  // the n − C smallest eigenvalues, summed from the smallest
-            for (int64_t i = 0; i < n - c; ++i) tail += std::max(0.0, lambda[i]);
-            const double exact = std::sqrt(tail / total);
+            "| C | exact rel. error | randomized SVD | passes | fmf rel. error | ratio fmf / "
+            "exact | fmf, f16 package | fmf time |\n|---|---|---|---|---|---|---|---|\n");
+        for (int c : ranks)
+            for (const std::string& config : configs) {
+                double tail = 0;  // the n − C smallest eigenvalues, summed from the smallest
+                for (int64_t i = 0; i < n - c; ++i) tail += std::max(0.0, lambda[i]);
+                const double exact = std::sqrt(tail / total);
 
-            fmf::Options options;  // the codec's defaults: oversampling 10, power iterations 3
-            options.components = c;
-            clock = bench::Stopwatch();
-            const factor::Model model = fmf::factorize(source, options);
-            const double seconds = clock.seconds();
-            const factor::Block& block = model.blocks.at(0);
-            const double fmf = std::sqrt(residual_energy(m, block.a, block.b) / total);
+                fmf::Options options;  // the codec's defaults, or the configuration's method and q
+                options.components = c;
+                if (config != "default") {
+                    std::vector<std::string> f;
+                    for (size_t b = 0, e; b <= config.size(); b = e + 1) {
+                        e = std::min(config.find(':', b), config.size());
+                        f.push_back(config.substr(b, e - b));
+                    }
+                    options.svd = f.at(0) == "krylov" ? factor::SvdMethod::kBlockKrylov
+                                                      : factor::SvdMethod::kSubspace;
+                    if (f.size() > 1) options.power_iterations = std::stoi(f[1]);
+                    if (f.size() > 2) options.block = std::stoi(f[2]);
+                }
+                factor::SvdOptions svd = factor::svd_options(options, c, false);
+                const std::string name = fmt::format(
+                    "{}{}, q = {}{}", config == "default" ? "default: " : "",
+                    options.svd == factor::SvdMethod::kBlockKrylov ? "krylov" : "subspace",
+                    options.power_iterations,
+                    options.block > 0 ? fmt::format(", block {}", options.block) : "");
+                clock = bench::Stopwatch();
+                const factor::Model model = fmf::factorize(source, options);
+                const double seconds = clock.seconds();
+                const factor::Block& block = model.blocks.at(0);
+                const double fmf = std::sqrt(residual_energy(m, block.a, block.b) / total);
 
-            const factor::Model stored = factor::from_package(
-                factor::to_package(model, "fmf", nlohmann::json::object(), options.quantization));
-            const factor::Block& sb = stored.blocks.at(0);
-            const double packaged = std::sqrt(residual_energy(m, sb.a, sb.b) / total);
-            std::printf("| %d | %.5f | %.5f | %.4f | %.5f | %.2f s |\n", c, exact, fmf, fmf / exact,
-                        packaged, seconds);
-            std::fflush(stdout);
-        }
+                const factor::Model stored = factor::from_package(factor::to_package(
+                    model, "fmf", nlohmann::json::object(), options.quantization));
+                const factor::Block& sb = stored.blocks.at(0);
+                const double packaged = std::sqrt(residual_energy(m, sb.a, sb.b) / total);
+                std::printf("| %d | %.5f | %s | %d | %.5f | %.4f | %.5f | %.2f s |\n", c, exact,
+                            name.c_str(), factor::svd_passes(svd), fmf, fmf / exact, packaged,
+                            seconds);
+                std::fflush(stdout);
+            }
     } catch (const btf::Error& e) {
         std::fprintf(stderr, "fmf_accuracy: %s\n", e.what());
         return 1;

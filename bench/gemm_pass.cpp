@@ -32,7 +32,8 @@ extern "C" void openblas_set_num_threads(int threads);
 namespace {
 
 using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-constexpr int64_t kCols = 65536, kWidth = 74, kRowChunk = 64, kColumnSlice = 2048;
+constexpr int64_t kCols = 65536;
+int64_t kRowChunk = 64, kColumnSlice = 2048;
 
 double seconds(const std::function<void()>& run, int repeat) {
     double best = 1e300;
@@ -96,6 +97,20 @@ std::vector<Way> ways() {
              });
          },
          false},
+        {"openblas-1t-zt",  // the transposed product as Zᵀ = Qᵀ·A (z's storage holds Zᵀ)
+         [](const Matrix& a, const Matrix& x, Matrix& y) {
+             btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
+                 sgemm(false, r1 - r0, x.cols(), a.cols(), a.data() + r0 * a.cols(), a.cols(),
+                       x.data(), x.cols(), 0, y.data() + r0 * y.cols(), y.cols());
+             });
+         },
+         [](const Matrix& a, const Matrix& q, Matrix& z) {
+             btf::parallel_chunks(0, a.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
+                 sgemm(true, q.cols(), c1 - c0, a.rows(), q.data(), q.cols(), a.data() + c0,
+                       a.cols(), 0, z.data() + c0, a.cols());
+             });
+         },
+         false},
     };
 }
 
@@ -108,7 +123,15 @@ int main(int argc, char** argv) {
     app.add_option("--repeat", repeat, "runs; the best counts")->check(CLI::Range(1, 100));
     app.add_option("--rows", batch_rows, "rows per batch (243: one view of 81 lights × RGB)")
         ->delimiter(',');
+    int64_t width = 74;
+    app.add_option("--width", width, "columns of the thin factor (74: C = 64 + oversampling 10)")
+        ->capture_default_str();
+    app.add_option("--row-chunk", kRowChunk, "rows per chunk of the direct products")
+        ->capture_default_str();
+    app.add_option("--column-slice", kColumnSlice, "columns per slice of the transposed products")
+        ->capture_default_str();
     CLI11_PARSE(app, argc, argv);
+    const int64_t kWidth = width;
 
     const int all = openblas_get_num_threads();
     const char* coretype = std::getenv("OPENBLAS_CORETYPE");
