@@ -52,6 +52,14 @@ void sgemm(bool transpose_a, int64_t m, int64_t n, int64_t k, const float* a, in
                 int(n), int(k), 1.0f, a, int(lda), b, int(ldb), beta, c, int(ldc));
 }
 
+// y = a·x as one single-threaded sgemm per fixed row chunk on TBB's threads.
+void rows_single_threaded(const Matrix& a, const Matrix& x, Matrix& y) {
+    btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
+        sgemm(false, r1 - r0, x.cols(), a.cols(), a.data() + r0 * a.cols(), a.cols(), x.data(),
+              x.cols(), 0, y.data() + r0 * y.cols(), y.cols());
+    });
+}
+
 struct Way {
     const char* name;
     std::function<void(const Matrix& a, const Matrix& x, Matrix& y)> rows;        // y = a·x
@@ -83,13 +91,7 @@ std::vector<Way> ways() {
                    z.data(), z.cols());
          },
          true},
-        {"openblas-1t",
-         [](const Matrix& a, const Matrix& x, Matrix& y) {
-             btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
-                 sgemm(false, r1 - r0, x.cols(), a.cols(), a.data() + r0 * a.cols(), a.cols(),
-                       x.data(), x.cols(), 0, y.data() + r0 * y.cols(), y.cols());
-             });
-         },
+        {"openblas-1t", rows_single_threaded,
          [](const Matrix& a, const Matrix& q, Matrix& z) {
              btf::parallel_chunks(0, a.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
                  sgemm(true, c1 - c0, q.cols(), a.rows(), a.data() + c0, a.cols(), q.data(),
@@ -98,12 +100,7 @@ std::vector<Way> ways() {
          },
          false},
         {"openblas-1t-zt",  // the transposed product as Zᵀ = Qᵀ·A (z's storage holds Zᵀ)
-         [](const Matrix& a, const Matrix& x, Matrix& y) {
-             btf::parallel_chunks(0, a.rows(), kRowChunk, [&](int64_t r0, int64_t r1) {
-                 sgemm(false, r1 - r0, x.cols(), a.cols(), a.data() + r0 * a.cols(), a.cols(),
-                       x.data(), x.cols(), 0, y.data() + r0 * y.cols(), y.cols());
-             });
-         },
+         rows_single_threaded,
          [](const Matrix& a, const Matrix& q, Matrix& z) {
              btf::parallel_chunks(0, a.cols(), kColumnSlice, [&](int64_t c0, int64_t c1) {
                  sgemm(true, q.cols(), c1 - c0, a.rows(), q.data(), q.cols(), a.data() + c0,

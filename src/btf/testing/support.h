@@ -6,13 +6,16 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
+#include "btf/util/parallel.h"
 
 // 1 in a build with AddressSanitizer (GCC says so by __SANITIZE_ADDRESS__, clang before 17 only
 // through __has_feature): tests that cap a process's memory skip themselves there, since ASan's
@@ -88,6 +91,18 @@ class ScopedLimits {
 };
 
 /// The bytes of a file ("" when it cannot be read).
+/// What `make` returns (bytes) with 1, 2 and all worker threads: for checks that results do not
+/// depend on the thread count.
+template <typename Fn>
+std::vector<std::vector<uint8_t>> bytes_per_thread_count(Fn&& make) {
+    std::vector<std::vector<uint8_t>> out;
+    for (int threads : {1, 2, 0}) {
+        const ThreadLimit limit(threads);
+        out.push_back(make());
+    }
+    return out;
+}
+
 inline std::string read_file(const std::filesystem::path& path) {
     std::ifstream in(path, std::ios::binary);
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

@@ -28,6 +28,16 @@ Matrix decaying(int rows, int cols, uint64_t seed) {
     return (qa * s.asDiagonal() * qb.transpose()).cast<float>();
 }
 
+// A Gaussian rows × rank times rank × cols product: a matrix of exactly that rank.
+Matrix low_rank(int rows, int cols, int rank, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<float> normal;
+    Matrix a(rows, rank), b(rank, cols);
+    for (int64_t i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
+    for (int64_t i = 0; i < b.size(); ++i) b.data()[i] = normal(rng);
+    return a * b;
+}
+
 // Every test of this suite runs for both methods.
 class RandomizedSvd : public ::testing::TestWithParam<SvdMethod> {
   protected:
@@ -75,12 +85,7 @@ TEST_P(RandomizedSvd, MatchesTheExactTruncatedSvd) {
 }
 
 TEST_P(RandomizedSvd, RecoversALowRankMatrixExactly) {
-    std::mt19937_64 rng(5);
-    std::normal_distribution<float> normal;
-    Matrix a(90, 6), b(6, 70);
-    for (int64_t i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
-    for (int64_t i = 0; i < b.size(); ++i) b.data()[i] = normal(rng);
-    const Matrix m = a * b;
+    const Matrix m = low_rank(90, 70, 6, 5);
     MemoryRows rows({&m}, 16);
     SvdOptions options = with_method();
     options.rank = 6;
@@ -220,12 +225,7 @@ TEST(BlockKrylov, MatchesSubspaceIterationWithFewerPassesAndProducts) {
 TEST(BlockKrylov, KeepsItsBlocksOrthonormalForALowRankMatrix) {
     // Rank 3, but 5 blocks of 8: the blocks after the second find nothing new and must still be
     // orthonormal, or the Rayleigh–Ritz step would invent energy.
-    std::mt19937_64 rng(15);
-    std::normal_distribution<float> normal;
-    Matrix a(50, 3), b(3, 120);
-    for (int64_t i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
-    for (int64_t i = 0; i < b.size(); ++i) b.data()[i] = normal(rng);
-    const Matrix m = a * b;
+    const Matrix m = low_rank(50, 120, 3, 15);
     const MemoryRows rows({&m}, 7);
     SvdOptions options;
     options.method = SvdMethod::kBlockKrylov;

@@ -12,7 +12,6 @@
 #include "btf/codecs/factor/model.h"
 #include "btf/io/function_source.h"
 #include "btf/testing/support.h"
-#include "btf/util/parallel.h"
 
 namespace btf {
 namespace {
@@ -264,12 +263,10 @@ TEST(Fmf, PackagesAreTheSameBytesForAnyThreadCount) {
     const FunctionSource source = small_source(64, 9, 50);
     for (const std::string svd : {"krylov", "subspace"}) {
         const Params params({{"components", "9"}, {"svd", svd}});
-        std::vector<uint8_t> bytes[3];
-        for (int i = 0; i < 3; ++i) {
-            ThreadLimit limit(i == 0 ? 1 : i == 1 ? 2 : 0);
+        const auto bytes = test::bytes_per_thread_count([&] {
             Package p = encode(source, params);
-            bytes[i] = encode_package(p);
-        }
+            return encode_package(p);
+        });
         EXPECT_EQ(bytes[0], bytes[1]) << svd;
         EXPECT_EQ(bytes[0], bytes[2]) << svd;
     }

@@ -306,12 +306,10 @@ TEST(Perceptual, IsDeterministicForAnyThreadCount) {
     const BtfSource& source = fabric();
     for (const std::string quality : {"1", "0.6"}) {  // without and with omission
         const Params params({{"components", "7"}, {"mean", "true"}, {"quality", quality}});
-        std::vector<uint8_t> bytes[3];
-        for (int i = 0; i < 3; ++i) {
-            ThreadLimit limit(i == 0 ? 1 : i == 1 ? 2 : 0);
+        const auto bytes = test::bytes_per_thread_count([&] {
             Package p = encode(source, params);
-            bytes[i] = encode_package(p);
-        }
+            return encode_package(p);
+        });
         EXPECT_EQ(bytes[0], bytes[1]) << quality;
         EXPECT_EQ(bytes[0], bytes[2]) << quality;
     }
