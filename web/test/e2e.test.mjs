@@ -6,7 +6,7 @@
 
 import { test, before, after } from "node:test";
 import assert from "node:assert/strict";
-import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
+import { mkdirSync, readFileSync, statSync, writeFileSync } from "node:fs";
 import path from "node:path";
 import { PATIENCE_MS, freePort, launchBrowser, meanDiff, openPage as open, pixels, render, state } from "./browser.mjs";
 import { ARTIFACTS, listEntry, makeFixtures, makeSite } from "./fixtures.mjs";
@@ -142,6 +142,8 @@ test("the page draws before the stream completes and refines with each component
 test("the animated page keeps drawing while components arrive, and its HUD says how far it is", async () => {
   const entry = listEntry("woven_fabric", fx.packages.woven_fabric, false);
   const components = entry.sections.filter((s) => /^b0\.k\d+$/.test(s.name));
+  // The HUD's total: the package's size as the viewer prints it (KiB with one decimal).
+  const total = (statSync(fx.packages.woven_fabric).size / 1024).toFixed(1).replace(".", "\\.");
   server.hold("woven_fabric", components.slice(0, -1).map((s) => s.offset + s.size));
   const { page, problems } = await openPage("material=woven_fabric&size=120x120");
   try {
@@ -150,13 +152,13 @@ test("the animated page keeps drawing while components arrive, and its HUD says 
     const f0 = (await state(page)).frames;
     await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 3, f0, { timeout: PATIENCE_MS });
     assert.equal((await state(page)).components, 1);
-    assert.match(await page.locator("#hud").innerText(), /woven_fabric \(fmf\): [\d.]+ KiB \/ 322\.5 KiB · 1\/8 components · http · refining/);
+    assert.match(await page.locator("#hud").innerText(), new RegExp(`woven_fabric \\(fmf\\): [\\d.]+ KiB / ${total} KiB · 1/8 components · http · refining`));
     server.releaseAll("woven_fabric");
     await page.waitForFunction(() => window.btfViewer.state.complete && window.btfViewer.state.components === 8, null, { timeout: PATIENCE_MS });
     const f1 = (await state(page)).frames;
     await page.waitForFunction((n) => window.btfViewer.state.frames >= n + 2, f1, { timeout: PATIENCE_MS });
     const hud = await page.locator("#hud").innerText();
-    assert.match(hud, /woven_fabric \(fmf\): 322\.5 KiB \/ 322\.5 KiB · 8\/8 components · http · complete/);
+    assert.match(hud, new RegExp(`woven_fabric \\(fmf\\): ${total} KiB / ${total} KiB · 8/8 components · http · complete`));
     assert.match(hud, /frame [\d.]+ ms \(\d+ fps\) · submit [\d.]+ ms/);
     await page.screenshot({ path: path.join(SHOTS, "animated-page.png") });
     assert.deepEqual(problems, []);
