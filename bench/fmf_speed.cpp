@@ -22,6 +22,7 @@
 #include <fmt/format.h>
 #include <immintrin.h>
 #include <malloc.h>
+#include <sys/mman.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
@@ -43,6 +44,7 @@
 #include "btf/synth/synth.h"
 #include "btf/util/blas.h"
 #include "btf/util/half.h"
+#include "btf/util/huge_pages.h"
 #include "btf/util/parallel.h"
 
 namespace {
@@ -100,6 +102,14 @@ factor::Matrix read_raw(const fs::path& path, int64_t rows, int64_t cols) {
     return m;
 }
 
+// madvise(MADV_HUGEPAGE) over the 2 MiB-aligned interior of [p, p + bytes).
+void advise_huge_pages(void* p, size_t bytes) {
+    const uintptr_t begin =
+        (reinterpret_cast<uintptr_t>(p) + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + bytes) & ~(kHugePageBytes - 1);
+    if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+}
+
 // Reads a C-order float32 .npy file of two dimensions (as write_npy writes it).
 factor::Matrix read_npy(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
@@ -117,6 +127,9 @@ factor::Matrix read_npy(const fs::path& path) {
             2)
         fail("{}: expected a C-order float32 matrix", path.string());
     factor::Matrix m(rows, cols);
+    // Transparent huge pages for the matrix, as NumPy gives its large arrays (madvise, before
+    // the first touch): the passes stream 5 GB, which 4 KiB pages cover only with TLB misses.
+    advise_huge_pages(m.data(), size_t(m.size()) * sizeof(float));
     in.read(reinterpret_cast<char*>(m.data()), std::streamsize(m.size() * sizeof(float)));
     if (!in) fail("{}: truncated", path.string());
     return m;

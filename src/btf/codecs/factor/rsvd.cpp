@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -123,12 +124,55 @@ void multiply_rows(const Rows& rows, const Matrix& x, int64_t first, Matrix& y) 
 // zt += q.middleRows(first, n)ᵀ · rows (zt: w × cols, the transpose of z = Mᵀ q), parallel over
 // fixed column slices, one sgemm per slice. (Computing zᵀ rather than z lets OpenBLAS stream the
 // rows as the non-transposed operand: 1.2× faster at fmf's shapes, bench/gemm_pass.)
-void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matrix& zt) {
+// With `energy`, also adds the rows' Σ of squares to it, summed per slice while the slice is in
+// the cache from the product, then in slice order.
+void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matrix& zt,
+                         double* energy = nullptr) {
     const int64_t w = q.cols();
+    std::vector<double> sums(energy ? (rows.cols + kColumnSlice - 1) / kColumnSlice : 0);
     parallel_chunks(0, rows.cols, kColumnSlice, [&](int64_t c0, int64_t c1) {
         blas::sgemm(true, w, c1 - c0, rows.rows, q.data() + first * w, w, rows.data + c0, rows.cols,
                     1.0f, zt.data() + c0, rows.cols);
+        if (!energy) return;
+        double sum = 0;
+        for (int64_t r = 0; r < rows.rows; ++r) {
+            const float* row = rows.data + r * rows.cols;
+            double row_sum = 0;
+            for (int64_t c = c0; c < c1; ++c) row_sum += double(row[c]) * row[c];
+            sum += row_sum;
+        }
+        sums[c0 / kColumnSlice] = sum;
     });
+    for (double sum : sums) *energy += sum;
+}
+
+// aᵀ·a in double, summed over fixed row chunks in chunk order (a: tall, double or float).
+template <typename Tall>
+Eigen::MatrixXd gram(const Tall& a) {
+    const int64_t n = a.rows(), chunks = (n + kThinChunk - 1) / kThinChunk;
+    std::vector<Eigen::MatrixXd> parts(chunks);
+    parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
+        const Eigen::MatrixXd rows = a.middleRows(r0, r1 - r0).template cast<double>();
+        parts[r0 / kThinChunk].noalias() = rows.transpose() * rows;
+    });
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+    for (const Eigen::MatrixXd& part : parts) out += part;
+    return out;
+}
+
+// z ← z·R⁻¹ with zᵀz = RᵀR (Cholesky QR), in parallel over fixed row chunks; false, leaving z
+// as it was, when zᵀz is too ill-conditioned for it (then Householder QR must do).
+bool cholesky_orthonormalize(Eigen::MatrixXd& z) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(gram(z));
+    if (llt.info() != Eigen::Success) return false;
+    const Eigen::VectorXd d = llt.matrixL().toDenseMatrix().diagonal();
+    if (!(d.minCoeff() > 1e-6 * d.maxCoeff())) return false;
+    const Eigen::MatrixXd r_inverse =
+        llt.matrixU().solve(Eigen::MatrixXd::Identity(z.cols(), z.cols()));
+    parallel_chunks(0, z.rows(), kThinChunk, [&](int64_t r0, int64_t r1) {
+        z.middleRows(r0, r1 - r0) = z.middleRows(r0, r1 - r0) * r_inverse;
+    });
+    return true;
 }
 
 // Removes from `z` its components in the span of the orthonormal columns of `basis` (twice:
@@ -289,6 +333,15 @@ void next_block(Eigen::MatrixXd& basis, int64_t used, Eigen::MatrixXd z, uint64_
         replaced = true;
     }
     if (replaced) project_out(basis.leftCols(used), z);
+    // Cholesky QR twice (CholeskyQR2), projecting once more in between; Householder QR where the
+    // block is too ill-conditioned for it.
+    if (cholesky_orthonormalize(z)) {
+        project_out(basis.leftCols(used), z);
+        if (cholesky_orthonormalize(z)) {
+            basis.middleCols(used, b) = z;
+            return;
+        }
+    }
     Eigen::HouseholderQR<Eigen::MatrixXd> qr(z);
     basis.middleCols(used, b) = qr.householderQ() * Eigen::MatrixXd::Identity(z.rows(), b);
     // Householder Q spans z's columns only where they are independent: project once more.
@@ -420,13 +473,17 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
             y[m] = Matrix::Zero(batches.rows(m), block[m]);
             if (fused && i < depth[m]) z[m] = Matrix::Zero(block[m], batches.cols(m));  // zᵀ
         }
-        const bool first_pass = i == 0;
+        // The first pass sums the energy too: in the transposed products' slices where they run
+        // (every matrix has a second block), else on its own.
+        const bool first_pass = i == 0, energy_in_slices = first_pass && fused;
         pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
-             first_pass ? &energy : nullptr, progress, stage(),
+             first_pass && !energy_in_slices ? &energy : nullptr, progress, stage(),
              [&](int m, int64_t first, const Rows& rows) {
                  if (i > depth[m]) return;
                  multiply_rows(rows, operand[m], first, y[m]);
-                 if (fused && i < depth[m]) multiply_transposed(rows, y[m], first, z[m]);
+                 if (fused && i < depth[m])
+                     multiply_transposed(rows, y[m], first, z[m],
+                                         energy_in_slices ? &energy[m] : nullptr);
              });
         for (int m = 0; m < count; ++m) {
             if (i > depth[m]) continue;
@@ -461,22 +518,43 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
     std::vector<Svd> result(count);
     for (int m = 0; m < count; ++m) {
         const int k = shapes.rank[m];
-        const Eigen::MatrixXd yd = ys[m].cast<double>();
-        Eigen::HouseholderQR<Eigen::MatrixXd> qr(yd);
-        const int64_t w = yd.cols();
-        const Eigen::MatrixXd r =
-            qr.matrixQR().topRows(w).triangularView<Eigen::Upper>().toDenseMatrix();
-        Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
         Svd& out = result[m];
-        Eigen::MatrixXd uq = Eigen::MatrixXd::Zero(yd.rows(), k);
-        uq.topRows(w) = svd.matrixU().leftCols(k);
-        uq.applyOnTheLeft(qr.householderQ());
-        out.u = uq.cast<float>();
-        out.v = (basis[m] * svd.matrixV().leftCols(k)).cast<float>();
-        out.sigma = svd.singularValues().head(k).cast<float>();
+        const int64_t w = ys[m].cols();
+        // The SVD of Y = M̃V from the eigen-decomposition of YᵀY (w × w, summed in parallel):
+        // Y = U S Wᵀ with U = Y W S⁻¹. Where the kept singular values span more than 10⁴ (their
+        // squares 10⁸, beyond what the Gram matrix resolves in double), Householder QR of Y.
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(ys[m]));
+        Eigen::MatrixXd w_vectors = eigen.eigenvectors().rowwise().reverse();
+        Eigen::VectorXd sigma = eigen.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
+        if (eigen.info() == Eigen::Success && sigma[k - 1] > 1e-4 * sigma[0]) {
+            const Matrix right =
+                (w_vectors.leftCols(k) * sigma.head(k).cwiseInverse().asDiagonal()).cast<float>();
+            out.u.resize(ys[m].rows(), k);
+            parallel_chunks(0, ys[m].rows(), kThinChunk, [&](int64_t r0, int64_t r1) {
+                out.u.middleRows(r0, r1 - r0).noalias() = ys[m].middleRows(r0, r1 - r0) * right;
+            });
+        } else {
+            const Eigen::MatrixXd yd = ys[m].cast<double>();
+            Eigen::HouseholderQR<Eigen::MatrixXd> qr(yd);
+            const Eigen::MatrixXd r =
+                qr.matrixQR().topRows(w).triangularView<Eigen::Upper>().toDenseMatrix();
+            Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
+            Eigen::MatrixXd u = Eigen::MatrixXd::Zero(yd.rows(), k);
+            u.topRows(w) = svd.matrixU().leftCols(k);
+            u.applyOnTheLeft(qr.householderQ());
+            out.u = u.cast<float>();
+            w_vectors = svd.matrixV();
+            sigma = svd.singularValues();
+        }
+        const Eigen::MatrixXd kept = w_vectors.leftCols(k);
+        out.v.resize(basis[m].rows(), k);
+        parallel_chunks(0, basis[m].rows(), kThinChunk, [&](int64_t r0, int64_t r1) {
+            out.v.middleRows(r0, r1 - r0) = (basis[m].middleRows(r0, r1 - r0) * kept).cast<float>();
+        });
+        out.sigma = sigma.head(k).cast<float>();
         out.mean = std::move(means[m]);
         out.total_energy = energy[m];
-        out.sketch_energy = svd.singularValues().squaredNorm();
+        out.sketch_energy = sigma.squaredNorm();
     }
     return result;
 }
