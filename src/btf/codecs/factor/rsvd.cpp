@@ -423,8 +423,8 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
                               const Shapes& shapes, Progress& progress) {
     const int count = batches.matrices();
     const Transforms* maps = options.transforms;
-    // A random block X₀ and q + 1 blocks after it, b columns each, within min(rows, cols)
-    // columns in all; the blocks after X₀ must hold the rank.
+    // A first block X₀ (from sampled rows) and q + 1 blocks after it, b columns each, within
+    // min(rows, cols) columns in all; the blocks after X₀ must hold the rank.
     std::vector<int> block(count), depth(count);
     int passes_depth = 0;
     for (int m = 0; m < count; ++m) {
@@ -447,8 +447,8 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
 
     std::vector<std::vector<float>> means(count);
     std::vector<double> energy(count, 0.0);
-    std::vector<Eigen::MatrixXd> basis(count);  // [X₀ … X_q], cols × (q + 1) b
-    std::vector<Matrix> ys(count);              // [M̃X₀ … M̃X_q], rows × (q + 1) b
+    std::vector<Eigen::MatrixXd> basis(count);  // [X₀ … X_depth], cols × (depth + 1) b
+    std::vector<Matrix> ys(count);              // [M̃X₀ … M̃X_depth], rows × (depth + 1) b
     std::vector<Matrix> operand(count), y(count), z(count);
     std::vector<int64_t> want(count);
     for (int m = 0; m < count; ++m) want[m] = std::min<int64_t>(4 * block[m], batches.rows(m));
