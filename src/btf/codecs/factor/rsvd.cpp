@@ -47,19 +47,24 @@ struct Rows {
     int64_t rows, cols;
 };
 
+// Σ of the squares of rows [r0, r1) × columns [c0, c1), in double, row by row.
+double sum_of_squares(const Rows& rows, int64_t r0, int64_t r1, int64_t c0, int64_t c1) {
+    double sum = 0;
+    for (int64_t r = r0; r < r1; ++r) {
+        const float* row = rows.data + r * rows.cols;
+        double row_sum = 0;
+        for (int64_t c = c0; c < c1; ++c) row_sum += double(row[c]) * row[c];
+        sum += row_sum;
+    }
+    return sum;
+}
+
 // Σ of the squares of the rows in double, summed per fixed row chunk and then in chunk order.
 double squared_norm(const Rows& rows) {
     const int64_t chunks = (rows.rows + kRowChunk - 1) / kRowChunk;
     std::vector<double> sums(chunks, 0.0);
     parallel_chunks(0, rows.rows, kRowChunk, [&](int64_t r0, int64_t r1) {
-        double sum = 0;
-        for (int64_t r = r0; r < r1; ++r) {
-            const float* row = rows.data + r * rows.cols;
-            double row_sum = 0;
-            for (int64_t c = 0; c < rows.cols; ++c) row_sum += double(row[c]) * row[c];
-            sum += row_sum;
-        }
-        sums[r0 / kRowChunk] = sum;
+        sums[r0 / kRowChunk] = sum_of_squares(rows, r0, r1, 0, rows.cols);
     });
     double total = 0;
     for (double s : sums) total += s;
@@ -133,31 +138,27 @@ void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matri
     parallel_chunks(0, rows.cols, kColumnSlice, [&](int64_t c0, int64_t c1) {
         blas::sgemm(true, w, c1 - c0, rows.rows, q.data() + first * w, w, rows.data + c0, rows.cols,
                     1.0f, zt.data() + c0, rows.cols);
-        if (!energy) return;
-        double sum = 0;
-        for (int64_t r = 0; r < rows.rows; ++r) {
-            const float* row = rows.data + r * rows.cols;
-            double row_sum = 0;
-            for (int64_t c = c0; c < c1; ++c) row_sum += double(row[c]) * row[c];
-            sum += row_sum;
-        }
-        sums[c0 / kColumnSlice] = sum;
+        if (energy) sums[c0 / kColumnSlice] = sum_of_squares(rows, 0, rows.rows, c0, c1);
     });
     for (double sum : sums) *energy += sum;
 }
 
-// aᵀ·a in double, summed over fixed row chunks in chunk order (a: tall, double or float).
-template <typename Tall>
-Eigen::MatrixXd gram(const Tall& a) {
+// aᵀ·b in double for tall a and b of as many rows, summed over fixed row chunks in chunk order.
+Eigen::MatrixXd inner(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
     const int64_t n = a.rows(), chunks = (n + kThinChunk - 1) / kThinChunk;
     std::vector<Eigen::MatrixXd> parts(chunks);
     parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
-        const Eigen::MatrixXd rows = a.middleRows(r0, r1 - r0).template cast<double>();
-        parts[r0 / kThinChunk].noalias() = rows.transpose() * rows;
+        parts[r0 / kThinChunk].noalias() =
+            a.middleRows(r0, r1 - r0).transpose() * b.middleRows(r0, r1 - r0);
     });
-    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(a.cols(), b.cols());
     for (const Eigen::MatrixXd& part : parts) out += part;
     return out;
+}
+
+// aᵀ·a in double, as inner().
+Eigen::MatrixXd gram(const Eigen::MatrixXd& a) {
+    return inner(a, a);
 }
 
 // z ← z·R⁻¹ with zᵀz = RᵀR (Cholesky QR), in parallel over fixed row chunks; false, leaving z
@@ -179,16 +180,9 @@ bool cholesky_orthonormalize(Eigen::MatrixXd& z) {
 // "twice is enough"), in double, with sums over fixed row chunks.
 void project_out(const Eigen::MatrixXd& basis, Eigen::MatrixXd& z) {
     if (basis.cols() == 0) return;
-    const int64_t n = z.rows(), chunks = (n + kThinChunk - 1) / kThinChunk;
-    std::vector<Eigen::MatrixXd> parts(chunks);
     for (int round = 0; round < 2; ++round) {
-        parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
-            parts[r0 / kThinChunk].noalias() =
-                basis.middleRows(r0, r1 - r0).transpose() * z.middleRows(r0, r1 - r0);
-        });
-        Eigen::MatrixXd c = parts[0];
-        for (int64_t i = 1; i < chunks; ++i) c += parts[i];
-        parallel_chunks(0, n, kThinChunk, [&](int64_t r0, int64_t r1) {
+        const Eigen::MatrixXd c = inner(basis, z);
+        parallel_chunks(0, z.rows(), kThinChunk, [&](int64_t r0, int64_t r1) {
             z.middleRows(r0, r1 - r0).noalias() -= basis.middleRows(r0, r1 - r0) * c;
         });
     }
@@ -523,7 +517,7 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
         // The SVD of Y = M̃V from the eigen-decomposition of YᵀY (w × w, summed in parallel):
         // Y = U S Wᵀ with U = Y W S⁻¹. Where the kept singular values span more than 10⁴ (their
         // squares 10⁸, beyond what the Gram matrix resolves in double), Householder QR of Y.
-        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(ys[m]));
+        const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram(ys[m].cast<double>()));
         Eigen::MatrixXd w_vectors = eigen.eigenvectors().rowwise().reverse();
         Eigen::VectorXd sigma = eigen.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
         if (eigen.info() == Eigen::Success && sigma[k - 1] > 1e-4 * sigma[0]) {
