@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "btf/codecs/factor/rsvd.h"
 #include "btf/core/direction.h"
 #include "btf/core/material.h"
 #include "btf/io/source.h"
@@ -181,5 +182,28 @@ class MemorySource final : public BtfSource {
     SourceInfo m_info;
     std::vector<std::vector<float>> m_images;
 };
+
+/// A randomized SVD configuration as the factorization benchmarks take it on their command line:
+/// method:q[:block[:oversampling]], e.g. krylov:2:37 or subspace:3::5; -1 where not written.
+struct SvdConfig {
+    factor::SvdMethod method = factor::SvdMethod::kSubspace;
+    int power_iterations = -1, block = -1, oversampling = -1;
+};
+
+inline SvdConfig parse_svd_config(const std::string& spec) {
+    std::vector<std::string> f;
+    for (size_t b = 0, e; b <= spec.size(); b = e + 1) {
+        e = std::min(spec.find(':', b), spec.size());
+        f.push_back(spec.substr(b, e - b));
+    }
+    if ((f[0] != "krylov" && f[0] != "subspace") || f.size() > 4)
+        fail("{}: expected krylov|subspace:q[:block[:oversampling]]", spec);
+    SvdConfig out;
+    out.method = f[0] == "krylov" ? factor::SvdMethod::kBlockKrylov : factor::SvdMethod::kSubspace;
+    int* fields[] = {&out.power_iterations, &out.block, &out.oversampling};
+    for (size_t i = 1; i < f.size(); ++i)
+        if (!f[i].empty()) *fields[i - 1] = std::stoi(f[i]);
+    return out;
+}
 
 }  // namespace btf::bench

@@ -122,15 +122,12 @@ int main(int argc, char** argv) {
                 fmf::Options options;  // the codec's defaults, or the configuration's method and q
                 options.components = c;
                 if (config != "default") {
-                    std::vector<std::string> f;
-                    for (size_t b = 0, e; b <= config.size(); b = e + 1) {
-                        e = std::min(config.find(':', b), config.size());
-                        f.push_back(config.substr(b, e - b));
-                    }
-                    options.svd = f.at(0) == "krylov" ? factor::SvdMethod::kBlockKrylov
-                                                      : factor::SvdMethod::kSubspace;
-                    if (f.size() > 1) options.power_iterations = std::stoi(f[1]);
-                    if (f.size() > 2) options.block = std::stoi(f[2]);
+                    const bench::SvdConfig parsed = bench::parse_svd_config(config);
+                    options.svd = parsed.method;
+                    if (parsed.power_iterations >= 0)
+                        options.power_iterations = parsed.power_iterations;
+                    if (parsed.block >= 0) options.block = parsed.block;
+                    if (parsed.oversampling >= 0) options.oversampling = parsed.oversampling;
                 }
                 factor::SvdOptions svd = factor::svd_options(options, c, false);
                 const std::string name = fmt::format(

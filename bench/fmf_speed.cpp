@@ -135,7 +135,7 @@ factor::Matrix read_npy(const fs::path& path) {
     return m;
 }
 
-std::vector<std::string> split(const std::string& text, char separator = ',') {
+std::vector<std::string> split(const std::string& text, char separator) {
     std::vector<std::string> out;
     size_t begin = 0;
     while (begin <= text.size()) {
@@ -349,17 +349,17 @@ int main(int argc, char** argv) {
                 double seconds, error;
             };
             std::vector<Ours> ours;
-            for (const std::string& spec : split(configs)) {
-                // method:q[:block[:oversampling]]
-                const std::vector<std::string> f = split(spec, ':');
+            for (const std::string& spec : split(configs, ',')) {
+                const bench::SvdConfig config = bench::parse_svd_config(spec);
                 factor::SvdOptions options;
                 options.rank = components;
                 options.seed = defaults.seed;
-                options.method = f.at(0) == "krylov" ? factor::SvdMethod::kBlockKrylov
-                                                     : factor::SvdMethod::kSubspace;
-                options.power_iterations = f.size() > 1 ? std::stoi(f[1]) : 3;
-                options.block = f.size() > 2 ? std::stoi(f[2]) : 0;
-                options.oversampling = f.size() > 3 ? std::stoi(f[3]) : defaults.oversampling;
+                options.method = config.method;
+                options.power_iterations =
+                    config.power_iterations >= 0 ? config.power_iterations : 3;
+                options.block = std::max(config.block, 0);
+                options.oversampling =
+                    config.oversampling >= 0 ? config.oversampling : defaults.oversampling;
                 const int passes = factor::svd_passes(options);
                 const int l = options.rank + options.oversampling;
                 const int q = options.power_iterations;
