@@ -46,6 +46,8 @@ export interface TileStreamingState {
   packetBytes: number;
   adds: number;
   swaps: number;
+  /** Add candidates the frame votes for (P > 0) that the cache does not hold. */
+  unmet: number;
   feedbackPasses: number;
   /** Nothing in flight, nothing to ask for, no operation left: the frame shows what it can. */
   settled: boolean;
@@ -79,6 +81,7 @@ export class TileStreaming {
     packetBytes: 0,
     adds: 0,
     swaps: 0,
+    unmet: 0,
     feedbackPasses: 0,
     settled: false,
   };
@@ -214,6 +217,8 @@ export class TileStreaming {
     for (const t of cache.tiles()) this.touch(this.tileKey(t));
     const s = this.state;
     s.resident = cache.size;
+    s.unmet = 0;
+    cache.forEachAddCandidate(this.votes!, () => (s.unmet += 1));
     s.stored = this.store.size;
     s.inFlight = this.inFlight.size;
     s.settled = d.operations.length === 0 && !d.wanted && asked === 0 && this.inFlight.size === 0;

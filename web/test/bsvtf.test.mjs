@@ -179,7 +179,9 @@ test("BSVTF mode: two materials share a cache too small for both and it never ov
     const b = s.bsvtf;
     assert.equal(b.capacity, 16);
     assert.ok(b.settled && b.resident <= 16 && b.shown === b.resident, JSON.stringify(b));
-    assert.ok(b.swaps > 0, `the cache never had to choose: ${JSON.stringify(b)}`);
+    // Full, with tiles the frame votes for left out: the cache had to choose. Whether it got there
+    // by swaps depends on the order the tiles arrived in (the unit test replays the swaps).
+    assert.ok(b.resident === b.capacity && b.unmet > 0, `the cache never had to choose: ${JSON.stringify(b)}`);
     const frame = await pixels(page);
     writePpm(path.join(OUT, "two-materials.ppm"), frame);
     await page.locator("canvas").screenshot({ path: path.join(OUT, "two-materials.png") });
