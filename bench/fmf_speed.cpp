@@ -46,6 +46,7 @@
 #include "btf/util/half.h"
 #include "btf/util/huge_pages.h"
 #include "btf/util/parallel.h"
+#include "btf/util/thin_products.h"
 
 namespace {
 
@@ -200,6 +201,11 @@ int main(int argc, char** argv) {
     app.add_option("--configs", configs,
                    "(b): btfkit's configurations, method:q[:block[:oversampling]], comma-separated")
         ->capture_default_str();
+    std::string products = "default";
+    app.add_option("--products", products,
+                   "(b): thin products by avx512 (btfkit's kernels), openblas, or both, "
+                   "comma-separated; each configuration runs with each")
+        ->capture_default_str();
     app.add_option("--exact", exact,
                    "(b): the Eckart–Young relative error of the matrix (bench/exact_tail.py)");
     app.add_option("--h5", h5_given, "(a): an existing btfkit HDF5 file instead of synthesizing");
@@ -334,10 +340,10 @@ int main(int argc, char** argv) {
 
             std::printf(
                 "(b) in memory: the %lld × %lld float32 matrix (%.2f GB), rank %d; %d cores; "
-                "%s\n\n",
+                "%s; btfkit's thin products by default: %s\n\n",
                 static_cast<long long>(m.rows()), static_cast<long long>(m.cols()),
                 double(m.size()) * 4 / 1e9, components, int(std::thread::hardware_concurrency()),
-                blas::description().c_str());
+                blas::description().c_str(), std::string(thin::kernel_name()).c_str());
             std::printf(
                 "| implementation | passes | products (columns) | time | GFLOP/s | rel. error "
                 "‖M − USVᵀ‖/‖M‖ |%s peak memory above the matrix |\n|---|---|---|---|---|---|%s---|"
@@ -349,45 +355,62 @@ int main(int argc, char** argv) {
                 double seconds, error;
             };
             std::vector<Ours> ours;
-            for (const std::string& spec : split(configs, ',')) {
-                const bench::SvdConfig config = bench::parse_svd_config(spec);
-                factor::SvdOptions options;
-                options.rank = components;
-                options.seed = defaults.seed;
-                options.method = config.method;
-                options.power_iterations =
-                    config.power_iterations >= 0 ? config.power_iterations : 3;
-                options.block = std::max(config.block, 0);
-                options.oversampling =
-                    config.oversampling >= 0 ? config.oversampling : defaults.oversampling;
-                const int passes = factor::svd_passes(options);
-                const int l = options.rank + options.oversampling;
-                const int q = options.power_iterations;
-                const int b = options.block > 0 ? options.block : (2 * l + q + 1) / (q + 2);
-                const int columns = options.method == factor::SvdMethod::kSubspace
-                                        ? (2 + 2 * q) * l
-                                        : (2 * (q + 1) + 1) * b;
-                bench::reset_peak_rss();
-                StageLog log;
-                bench::Stopwatch clock;
-                const factor::MemoryRows rows({&m}, 243);
-                const factor::Svd svd = factor::randomized_svd(rows, options, log.progress()).at(0);
-                const double seconds = clock.seconds();
-                log.progress().begin("done", 0);
-                const int64_t peak = bench::peak_rss();
-                const double error = std::sqrt(residual_energy(m, svd.u, svd.sigma, svd.v) / total);
-                const std::string name =
-                    options.method == factor::SvdMethod::kSubspace
-                        ? fmt::format("btfkit subspace, q = {}, oversampling {}", q,
-                                      options.oversampling)
-                        : fmt::format("btfkit krylov, q = {}, block {}", q, b);
-                std::printf("| %s | %d | %d | %.2f s | %.0f | %.5f |%s %.0f MiB |\n", name.c_str(),
-                            passes, columns, seconds, columns * mn2 / seconds / 1e9, error,
-                            exact > 0 ? fmt::format(" {:.4f} |", error / exact).c_str() : "",
-                            bench::mib(peak - rss_loaded));
-                std::fflush(stdout);
-                ours.push_back({name, seconds, error});
+            std::vector<thin::Kernel> kernels;
+            for (const std::string& name : split(products, ',')) {
+                if (name == "default")
+                    kernels.push_back(thin::kernel());
+                else if (name == "avx512")
+                    kernels.push_back(thin::Kernel::kOwn);
+                else if (name == "openblas")
+                    kernels.push_back(thin::Kernel::kBlas);
+                else
+                    fail("--products: {}: expected avx512, openblas or default", name);
             }
+            for (const std::string& spec : split(configs, ','))
+                for (const thin::Kernel kernel : kernels) {
+                    thin::set_kernel(kernel);
+                    const bench::SvdConfig config = bench::parse_svd_config(spec);
+                    factor::SvdOptions options;
+                    options.rank = components;
+                    options.seed = defaults.seed;
+                    options.method = config.method;
+                    options.power_iterations =
+                        config.power_iterations >= 0 ? config.power_iterations : 3;
+                    options.block = std::max(config.block, 0);
+                    options.oversampling =
+                        config.oversampling >= 0 ? config.oversampling : defaults.oversampling;
+                    const int passes = factor::svd_passes(options);
+                    const int l = options.rank + options.oversampling;
+                    const int q = options.power_iterations;
+                    const int b = options.block > 0 ? options.block : (2 * l + q + 1) / (q + 2);
+                    const int columns = options.method == factor::SvdMethod::kSubspace
+                                            ? (2 + 2 * q) * l
+                                            : (2 * (q + 1) + 1) * b;
+                    bench::reset_peak_rss();
+                    StageLog log;
+                    bench::Stopwatch clock;
+                    const factor::MemoryRows rows({&m}, 243);
+                    const factor::Svd svd =
+                        factor::randomized_svd(rows, options, log.progress()).at(0);
+                    const double seconds = clock.seconds();
+                    log.progress().begin("done", 0);
+                    const int64_t peak = bench::peak_rss();
+                    const double error =
+                        std::sqrt(residual_energy(m, svd.u, svd.sigma, svd.v) / total);
+                    const std::string name =
+                        (options.method == factor::SvdMethod::kSubspace
+                             ? fmt::format("btfkit subspace, q = {}, oversampling {}", q,
+                                           options.oversampling)
+                             : fmt::format("btfkit krylov, q = {}, block {}", q, b)) +
+                        fmt::format(" ({})", thin::kernel_name());
+                    std::printf("| %s | %d | %d | %.2f s | %.0f | %.5f |%s %.0f MiB |\n",
+                                name.c_str(), passes, columns, seconds,
+                                columns * mn2 / seconds / 1e9, error,
+                                exact > 0 ? fmt::format(" {:.4f} |", error / exact).c_str() : "",
+                                bench::mib(peak - rss_loaded));
+                    std::fflush(stdout);
+                    ours.push_back({name, seconds, error});
+                }
 
             // scikit-learn on the same matrix (a missing python3 or scikit-learn skips the row).
             const int sk_q = 3, sk_p = 10, sk_l = components + sk_p;

@@ -5,7 +5,12 @@
 //                  (64-row chunks for Y, 2048-column slices for Z);
 //   openblas       one cblas_sgemm per batch on OpenBLAS's own threads;
 //   openblas-1t    one single-threaded sgemm per fixed chunk on TBB's threads (the chunks of
-//                  eigen-chunks), so that no sum depends on the number of threads.
+//                  eigen-chunks), so that no sum depends on the number of threads;
+//   openblas-1t-zt the same with the transposed product as Zᵀ = Qᵀ·A;
+//   btfkit         what factor/rsvd.cpp does now: btfkit's thin-product kernels
+//                  (util/thin_products.h; AVX-512, or OpenBLAS where the CPU has none) on
+//                  TBB's threads, 128-row chunks for Y = A·X (X held transposed), 2048-column
+//                  slices for Zᵀ = Qᵀ·A.
 // For each, the best of --repeat runs in GFLOP/s, and whether the result is bitwise the same with
 // one thread as with all (the factorization's guarantee). Prints the OpenBLAS kernel in use
 // (OPENBLAS_CORETYPE, when set, chooses it) and a Markdown table.
@@ -24,6 +29,7 @@
 #include <vector>
 
 #include "btf/util/parallel.h"
+#include "btf/util/thin_products.h"
 
 extern "C" char* openblas_get_corename(void);
 extern "C" int openblas_get_num_threads(void);
@@ -34,6 +40,7 @@ namespace {
 using Matrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 constexpr int64_t kCols = 65536;
 int64_t kRowChunk = 64, kColumnSlice = 2048;
+const Matrix* transposed_x = nullptr;  // Xᵀ, for the btfkit way
 
 double seconds(const std::function<void()>& run, int repeat) {
     double best = 1e300;
@@ -108,6 +115,23 @@ std::vector<Way> ways() {
              });
          },
          false},
+        {"btfkit",
+         [](const Matrix& a, const Matrix& x, Matrix& y) {
+             btf::parallel_chunks(0, a.rows(), 128, [&](int64_t r0, int64_t r1) {
+                 btf::thin::multiply(a.data() + r0 * a.cols(), r1 - r0, a.cols(), a.cols(),
+                                     transposed_x->data(), x.cols(), a.cols(),
+                                     y.data() + r0 * y.cols(), y.cols());
+             });
+         },
+         [](const Matrix& a, const Matrix& q, Matrix& z) {
+             z.setZero();
+             btf::parallel_chunks(0, a.cols(), 2048, [&](int64_t c0, int64_t c1) {
+                 btf::thin::multiply_add_transposed(q.data(), a.rows(), q.cols(), q.cols(),
+                                                    a.data() + c0, c1 - c0, a.cols(), z.data() + c0,
+                                                    a.cols());
+             });
+         },
+         false},
     };
 }
 
@@ -132,15 +156,20 @@ int main(int argc, char** argv) {
 
     const int all = openblas_get_num_threads();
     const char* coretype = std::getenv("OPENBLAS_CORETYPE");
-    std::printf("OpenBLAS kernel %s (OPENBLAS_CORETYPE %s), %d threads; %lld columns, l = %lld\n\n",
-                openblas_get_corename(), coretype ? coretype : "unset", all,
-                static_cast<long long>(kCols), static_cast<long long>(kWidth));
+    std::printf(
+        "OpenBLAS kernel %s (OPENBLAS_CORETYPE %s), %d threads; btfkit's thin products: %s; %lld "
+        "columns, l = %lld\n\n",
+        openblas_get_corename(), coretype ? coretype : "unset", all,
+        std::string(btf::thin::kernel_name()).c_str(), static_cast<long long>(kCols),
+        static_cast<long long>(kWidth));
     std::printf(
         "| rows per batch | way | Y = A·X (GFLOP/s) | Z = Aᵀ·Q (GFLOP/s) | same with 1 thread |\n");
     std::printf("|---|---|---|---|---|\n");
     for (const int64_t rows : batch_rows) {
         const Matrix a = Matrix::Random(rows, kCols), x = Matrix::Random(kCols, kWidth),
                      q = Matrix::Random(rows, kWidth);
+        const Matrix xt = x.transpose();
+        transposed_x = &xt;
         const double flop = 2.0 * double(rows) * double(kCols) * double(kWidth);
         for (const Way& way : ways()) {
             openblas_set_num_threads(way.blas_threads ? all : 1);

@@ -49,13 +49,14 @@ SerialBlas::~SerialBlas() {
     if (--serial_users == 0 && saved_threads != 1) openblas_set_num_threads(saved_threads);
 }
 
-void sgemm(bool transpose_a, int64_t m, int64_t n, int64_t k, const float* a, int64_t lda,
-           const float* b, int64_t ldb, float beta, float* c, int64_t ldc) {
+void sgemm(bool transpose_a, bool transpose_b, int64_t m, int64_t n, int64_t k, const float* a,
+           int64_t lda, const float* b, int64_t ldb, float beta, float* c, int64_t ldc) {
     for (int64_t v : {m, n, k, lda, ldb, ldc})
         if (v > INT_MAX) fail("matrix product: dimension {} exceeds the BLAS's 32-bit range", v);
     if (m == 0 || n == 0) return;
-    cblas_sgemm(CblasRowMajor, transpose_a ? CblasTrans : CblasNoTrans, CblasNoTrans, int(m),
-                int(n), int(k), 1.0f, a, int(lda), b, int(ldb), beta, c, int(ldc));
+    cblas_sgemm(CblasRowMajor, transpose_a ? CblasTrans : CblasNoTrans,
+                transpose_b ? CblasTrans : CblasNoTrans, int(m), int(n), int(k), 1.0f, a, int(lda),
+                b, int(ldb), beta, c, int(ldc));
 }
 
 }  // namespace btf::blas

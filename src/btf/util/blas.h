@@ -29,10 +29,10 @@ class SerialBlas {
     SerialBlas& operator=(const SerialBlas&) = delete;
 };
 
-/// c = a · b + beta · c for row-major matrices, or aᵀ · b + beta · c when `transpose_a`:
-/// op(a) is m × k, b is k × n, c is m × n; lda, ldb, ldc are row strides in floats. Runs on the
-/// calling thread when a SerialBlas lives.
-void sgemm(bool transpose_a, int64_t m, int64_t n, int64_t k, const float* a, int64_t lda,
-           const float* b, int64_t ldb, float beta, float* c, int64_t ldc);
+/// c = op(a) · op(b) + beta · c for row-major matrices, op(x) = xᵀ where `transpose_x`:
+/// op(a) is m × k, op(b) is k × n, c is m × n; lda, ldb, ldc are row strides in floats. Runs on
+/// the calling thread when a SerialBlas lives.
+void sgemm(bool transpose_a, bool transpose_b, int64_t m, int64_t n, int64_t k, const float* a,
+           int64_t lda, const float* b, int64_t ldb, float beta, float* c, int64_t ldc);
 
 }  // namespace btf::blas

@@ -12,6 +12,7 @@
 #include "btf/util/blas.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
+#include "btf/util/thin_products.h"
 
 namespace btf::factor {
 
@@ -47,13 +48,21 @@ struct Rows {
     int64_t rows, cols;
 };
 
-// Σ of the squares of rows [r0, r1) × columns [c0, c1), in double, row by row.
+// Σ of the squares of rows [r0, r1) × columns [c0, c1), in double, row by row; along a row in
+// 16 running sums of every 16th column (a fixed order the compiler can vectorize: one running sum
+// would make each addition wait for the one before), added up at the end of the row.
 double sum_of_squares(const Rows& rows, int64_t r0, int64_t r1, int64_t c0, int64_t c1) {
+    constexpr int kLanes = 16;
     double sum = 0;
     for (int64_t r = r0; r < r1; ++r) {
         const float* row = rows.data + r * rows.cols;
+        double lanes[kLanes] = {};
+        int64_t c = c0;
+        for (; c + kLanes <= c1; c += kLanes)
+            for (int j = 0; j < kLanes; ++j) lanes[j] += double(row[c + j]) * row[c + j];
         double row_sum = 0;
-        for (int64_t c = c0; c < c1; ++c) row_sum += double(row[c]) * row[c];
+        for (; c < c1; ++c) row_sum += double(row[c]) * row[c];
+        for (const double lane : lanes) row_sum += lane;
         sum += row_sum;
     }
     return sum;
@@ -117,18 +126,18 @@ void pass(const RowBatches& batches, bool subtract_mean, std::vector<std::vector
     progress.finish();
 }
 
-// y.middleRows(first, n) = rows · x, parallel over fixed row chunks, one sgemm per chunk.
-void multiply_rows(const Rows& rows, const Matrix& x, int64_t first, Matrix& y) {
-    const int64_t w = x.cols();
+// y.middleRows(first, n) = rows · xtᵀ (xt: w × cols, the thin factor transposed), parallel over
+// fixed row chunks (util/thin_products.h).
+void multiply_rows(const Rows& rows, const Matrix& xt, int64_t first, Matrix& y) {
+    const int64_t w = xt.rows();
     parallel_chunks(0, rows.rows, kRowChunk, [&](int64_t r0, int64_t r1) {
-        blas::sgemm(false, r1 - r0, w, rows.cols, rows.data + r0 * rows.cols, rows.cols, x.data(),
-                    w, 0.0f, y.data() + (first + r0) * w, w);
+        thin::multiply(rows.data + r0 * rows.cols, r1 - r0, rows.cols, rows.cols, xt.data(), w,
+                       rows.cols, y.data() + (first + r0) * w, w);
     });
 }
 
 // zt += q.middleRows(first, n)ᵀ · rows (zt: w × cols, the transpose of z = Mᵀ q), parallel over
-// fixed column slices, one sgemm per slice. (Computing zᵀ rather than z lets OpenBLAS stream the
-// rows as the non-transposed operand: 1.2× faster at fmf's shapes, bench/gemm_pass.)
+// fixed column slices (util/thin_products.h; as zᵀ, the rows are read in their own order).
 // With `energy`, also adds the rows' Σ of squares to it, summed per slice while the slice is in
 // the cache from the product, then in slice order.
 void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matrix& zt,
@@ -136,8 +145,8 @@ void multiply_transposed(const Rows& rows, const Matrix& q, int64_t first, Matri
     const int64_t w = q.cols();
     std::vector<double> sums(energy ? (rows.cols + kColumnSlice - 1) / kColumnSlice : 0);
     parallel_chunks(0, rows.cols, kColumnSlice, [&](int64_t c0, int64_t c1) {
-        blas::sgemm(true, w, c1 - c0, rows.rows, q.data() + first * w, w, rows.data + c0, rows.cols,
-                    1.0f, zt.data() + c0, rows.cols);
+        thin::multiply_add_transposed(q.data() + first * w, rows.rows, w, w, rows.data + c0,
+                                      c1 - c0, rows.cols, zt.data() + c0, rows.cols);
         if (energy) sums[c0 / kColumnSlice] = sum_of_squares(rows, 0, rows.rows, c0, c1);
     });
     for (double sum : sums) *energy += sum;
@@ -245,6 +254,9 @@ std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions&
             if (maps) {
                 operand[m] = basis[m];
                 maps->right(m, operand[m], true);
+                operand[m].transposeInPlace();
+            } else {
+                operand[m] = basis[m].transpose();
             }
             y[m] = Matrix::Zero(batches.rows(m), width[m]);
         }
@@ -252,7 +264,7 @@ std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions&
         pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
              first_pass ? &energy : nullptr, progress, stage(),
              [&](int m, int64_t first, const Rows& rows) {
-                 multiply_rows(rows, maps ? operand[m] : basis[m], first, y[m]);
+                 multiply_rows(rows, operand[m], first, y[m]);
              });
         if (maps)
             for (int m = 0; m < count; ++m) maps->left(m, y[m], false);
@@ -464,6 +476,7 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
             if (i > depth[m]) continue;
             operand[m] = basis[m].middleCols(int64_t(i) * block[m], block[m]).cast<float>();
             if (maps) maps->right(m, operand[m], true);
+            operand[m].transposeInPlace();
             y[m] = Matrix::Zero(batches.rows(m), block[m]);
             if (fused && i < depth[m]) z[m] = Matrix::Zero(block[m], batches.cols(m));  // zᵀ
         }
@@ -585,7 +598,7 @@ std::vector<Factors> untransformed_factors(const RowBatches& batches, const Tran
             fail("untransformed factors: SVD {} keeps a zero singular value", m);
         right[m] = svd.v.leftCols(k);
         transforms.right(m, right[m], true);
-        right[m] = right[m] * svd.sigma.head(k).cwiseInverse().asDiagonal();
+        right[m] = (right[m] * svd.sigma.head(k).cwiseInverse().asDiagonal()).transpose().eval();
         left[m] = svd.u.leftCols(k);
         transforms.left(m, left[m], true);
         out[m].a = Matrix::Zero(batches.rows(m), k);

@@ -9,6 +9,7 @@
 
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
+#include "btf/util/thin_products.h"
 
 namespace btf::factor {
 namespace {
@@ -136,6 +137,30 @@ TEST_P(RandomizedSvd, IsDeterministicForAnyThreadCount) {
     EXPECT_EQ(one.u, two.u);
     EXPECT_EQ(one.v, two.v);
     EXPECT_EQ(one.sigma, two.sigma);
+}
+
+// The passes' products by btfkit's kernels and by OpenBLAS (util/thin_products.h) differ only in
+// rounding: the same factorization within float precision, each deterministic.
+TEST_P(RandomizedSvd, GivesTheSameFactorizationWithEitherProductKernel) {
+    if (!thin::own_kernel_supported()) GTEST_SKIP() << "no AVX-512F on this CPU";
+    const Matrix m = decaying(300, 3000, 5);
+    MemoryRows rows({&m}, 37);
+    SvdOptions options = with_method();
+    options.rank = 12;
+    const thin::Kernel saved = thin::kernel();
+    Svd by[2];
+    for (const thin::Kernel k : {thin::Kernel::kOwn, thin::Kernel::kBlas}) {
+        thin::set_kernel(k);
+        by[int(k)] = randomized_svd(rows, options)[0];
+        EXPECT_EQ(randomized_svd(rows, options)[0].u, by[int(k)].u);
+    }
+    thin::set_kernel(saved);
+    EXPECT_LT((by[0].sigma - by[1].sigma).cwiseAbs().maxCoeff(), 1e-4 * by[0].sigma[0]);
+    EXPECT_NEAR(truncation_error(m, by[0]), truncation_error(m, by[1]),
+                1e-4 * truncation_error(m, by[1]));
+    // Singular vectors up to sign.
+    for (int j = 0; j < 12; ++j)
+        EXPECT_GT(std::abs(by[0].v.col(j).dot(by[1].v.col(j))), 0.999f) << j;
 }
 
 TEST_P(RandomizedSvd, ClampsTheRankToTheMatrix) {
