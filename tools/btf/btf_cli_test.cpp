@@ -24,6 +24,7 @@
 #include "btf/io/package.h"
 #include "btf/testing/cli.h"
 #include "btf/testing/support.h"
+#include "btf/util/thin_products.h"
 
 namespace btf {
 namespace {
@@ -59,7 +60,13 @@ TEST_F(BtfCli, HelpListsEverySubcommand) {
 TEST_F(BtfCli, VerboseNamesTheOpenBlasKernelAndTheThreads) {
     const CliResult r = run("--verbose --threads 1 codecs");
     EXPECT_EQ(r.code, 0) << r.output;
-    EXPECT_NE(r.output.find("btf: 1 worker threads; OpenBLAS "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(btf::thin::kernel() == btf::thin::Kernel::kOwn
+                                ? "btf: 1 worker threads; factorization products: btfkit's "
+                                  "AVX-512 kernels; OpenBLAS "
+                                : "btf: 1 worker threads; factorization products: OpenBLAS; "
+                                  "OpenBLAS "),
+              std::string::npos)
+        << r.output;
     EXPECT_NE(r.output.find(", kernel "), std::string::npos) << r.output;
     EXPECT_EQ(run("codecs").output.find("kernel"), std::string::npos);
 }

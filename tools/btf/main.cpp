@@ -15,6 +15,7 @@
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
+#include "btf/util/thin_products.h"
 #include "cli.h"
 
 namespace {
@@ -91,8 +92,9 @@ int main(int argc, char** argv) {
     app.add_flag("-q,--quiet", global.quiet, "no progress output");
     bool verbose = false;
     app.add_flag("-v,--verbose", verbose,
-                 "say on stderr which OpenBLAS kernel runs the factorization's products and how "
-                 "many worker threads run");
+                 "say on stderr what runs the factorization's products (btfkit's AVX-512 "
+                 "kernels or OpenBLAS, and which OpenBLAS kernel) and how many worker threads "
+                 "run");
     int64_t max_image_pixels = 0;
     std::string max_alloc;
     app.add_option("--max-image-pixels", max_image_pixels,
@@ -133,7 +135,10 @@ int main(int argc, char** argv) {
         btf::set_limits(limits);
         btf::ThreadLimit limit(global.threads);
         if (verbose)
-            std::fprintf(stderr, "btf: %d worker threads; %s\n", btf::worker_threads(),
+            std::fprintf(stderr, "btf: %d worker threads; factorization products: %s; %s\n",
+                         btf::worker_threads(),
+                         btf::thin::kernel() == btf::thin::Kernel::kOwn ? "btfkit's AVX-512 kernels"
+                                                                        : "OpenBLAS",
                          btf::blas::description().c_str());
         for (const Command& command : commands)
             if (command.parser->parsed()) command.run();
