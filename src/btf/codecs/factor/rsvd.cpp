@@ -7,6 +7,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <optional>
 #include <random>
 
 #include "btf/util/blas.h"
@@ -571,7 +572,9 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
 std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& options,
                                 Progress& progress) {
     const Shapes shapes = check_options(batches, options);
-    const blas::SerialBlas serial;
+    // OpenBLAS on one thread while it runs the products (not at all with btfkit's kernels).
+    std::optional<blas::SerialBlas> serial;
+    if (thin::kernel() == thin::Kernel::kBlas) serial.emplace();
     return options.method == SvdMethod::kBlockKrylov
                ? block_krylov(batches, options, shapes, progress)
                : subspace_iteration(batches, options, shapes, progress);
@@ -604,7 +607,9 @@ std::vector<Factors> untransformed_factors(const RowBatches& batches, const Tran
         out[m].a = Matrix::Zero(batches.rows(m), k);
         out[m].b = Matrix::Zero(k, batches.cols(m));  // bᵀ during the pass
     }
-    const blas::SerialBlas serial;
+    // OpenBLAS on one thread while it runs the products (not at all with btfkit's kernels).
+    std::optional<blas::SerialBlas> serial;
+    if (thin::kernel() == thin::Kernel::kBlas) serial.emplace();
     pass(batches, centred, nullptr, nullptr, progress, "factorizing: untransforming",
          [&](int m, int64_t first, const Rows& rows) {
              if (keep[m] == 0) return;
