@@ -24,6 +24,8 @@
 #include "btf/codecs/factor/params.h"
 #include "btf/codecs/fmf/fmf.h"
 #include "btf/synth/synth.h"
+#include "btf/util/blas.h"
+#include "btf/util/thin_products.h"
 
 namespace {
 
@@ -110,6 +112,8 @@ int main(int argc, char** argv) {
                      gram_seconds, eigen_seconds);
         const Eigen::VectorXd& lambda = eigen.eigenvalues();  // ascending
 
+        std::printf("products: %s; %s\n\n", std::string(thin::kernel_name()).c_str(),
+                    blas::description().c_str());
         std::printf(
             "| C | exact rel. error | randomized SVD | passes | fmf rel. error | ratio fmf / "
             "exact | fmf, f16 package | fmf time |\n|---|---|---|---|---|---|---|---|\n");

@@ -252,12 +252,12 @@ int main(int argc, char** argv) {
             std::printf(
                 "(a) end to end: %s, %d² texels × %d views × %d lights in a btfkit HDF5 file (%.2f "
                 "GB) → fmf C = %d (rgb, %s, q = %d, oversampling %d: %d passes; f16, zstd 9); "
-                "%s\n\n",
+                "products: %s; %s\n\n",
                 h5_path.filename().c_str(), source->width(), source->num_views(),
                 source->num_lights(), double(fs::file_size(h5_path)) / 1e9, components,
                 defaults.svd == factor::SvdMethod::kBlockKrylov ? "block Krylov" : "subspace",
                 defaults.power_iterations, defaults.oversampling, passes,
-                blas::description().c_str());
+                std::string(thin::kernel_name()).c_str(), blas::description().c_str());
             std::printf(
                 "| wall time | peak RSS | peak RSS above start | package | ratio (8-bit RGB) |\n"
                 "|---|---|---|---|---|\n");

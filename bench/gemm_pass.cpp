@@ -13,7 +13,8 @@
 //                  slices for Zᵀ = Qᵀ·A.
 // For each, the best of --repeat runs in GFLOP/s, and whether the result is bitwise the same with
 // one thread as with all (the factorization's guarantee). Prints the OpenBLAS kernel in use
-// (OPENBLAS_CORETYPE, when set, chooses it) and a Markdown table.
+// (OPENBLAS_CORETYPE, when set, chooses it), the rate of a square 4096² sgemm on OpenBLAS's
+// threads for reference, and a Markdown table.
 //
 //   build/<dir>/gemm_pass [--repeat 5] [--rows 243,972,2916,8192]
 
@@ -162,6 +163,18 @@ int main(int argc, char** argv) {
         openblas_get_corename(), coretype ? coretype : "unset", all,
         std::string(btf::thin::kernel_name()).c_str(), static_cast<long long>(kCols),
         static_cast<long long>(kWidth));
+    {
+        // The machine's GEMM rate for reference: a square product on OpenBLAS's own threads.
+        const int64_t n = 4096;
+        const Matrix a = Matrix::Random(n, n), b = Matrix::Random(n, n);
+        Matrix c(n, n);
+        openblas_set_num_threads(all);
+        const double t = seconds(
+            [&] { sgemm(false, n, n, n, a.data(), n, b.data(), n, 0, c.data(), n); }, repeat);
+        std::printf("square %lld² sgemm on OpenBLAS's %d threads: %.0f GFLOP/s\n\n",
+                    static_cast<long long>(n), all,
+                    2.0 * double(n) * double(n) * double(n) / t / 1e9);
+    }
     std::printf(
         "| rows per batch | way | Y = A·X (GFLOP/s) | Z = Aᵀ·Q (GFLOP/s) | same with 1 thread |\n");
     std::printf("|---|---|---|---|---|\n");

@@ -180,8 +180,8 @@ BTF_AVX512 void outer_tile(const float* q, int64_t ldq, int64_t rows, const floa
     }
 }
 
-using OuterTile = void (*)(const float*, int64_t, int64_t, const float*, int64_t,
-                           const __mmask16*, float*, int64_t);
+using OuterTile = void (*)(const float*, int64_t, int64_t, const float*, int64_t, const __mmask16*,
+                           float*, int64_t);
 
 template <int V, int... P>
 constexpr std::array<OuterTile, sizeof...(P)> outer_table(std::integer_sequence<int, P...>) {
@@ -192,7 +192,9 @@ constexpr auto kOuterTiles =
     outer_table<kOuterVectors>(std::make_integer_sequence<int, kOuterRows>{});
 
 __mmask16 first_lanes(int64_t count) {
-    return count >= 16 ? __mmask16(0xFFFF) : count <= 0 ? __mmask16(0) : __mmask16((1u << count) - 1);
+    return count >= 16  ? __mmask16(0xFFFF)
+           : count <= 0 ? __mmask16(0)
+                        : __mmask16((1u << count) - 1);
 }
 
 BTF_AVX512 void multiply_add_transposed_own(const float* q, int64_t rows, int64_t w, int64_t ldq,

@@ -62,7 +62,7 @@ const char* name(Kernel k) {
 struct Shape {
     int64_t rows, n, w;
 };
-const Shape kShapes[] = {{1, 1, 1},    {1, 17, 5},    {3, 15, 6},     {4, 16, 7},  {5, 33, 12},
+const Shape kShapes[] = {{1, 1, 1},    {1, 17, 5},    {3, 15, 6},     {4, 16, 7},    {5, 33, 12},
                          {7, 47, 13},  {9, 100, 25},  {13, 300, 37},  {2, 9000, 40}, {6, 4099, 74},
                          {300, 70, 3}, {520, 95, 14}, {11, 2500, 150}};
 
@@ -136,10 +136,9 @@ TEST(ThinProducts, OwnKernelsGiveTheSameBitsHoweverTheCallerSplitsTheWork) {
         EXPECT_EQ(whole, split) << name(k);
 
         std::vector<float> zt_whole(size_t(w * n), 0.5f), zt_split(size_t(w * n), 0.5f);
-        multiply_add_transposed(q.data.data(), rows, w, w, a.data.data(), n, n, zt_whole.data(),
-                                n);
-        for (const auto [c0, c1] : {std::pair<int64_t, int64_t>{0, 7}, {7, 2048}, {2048, 2081},
-                                    {2081, 5000}})
+        multiply_add_transposed(q.data.data(), rows, w, w, a.data.data(), n, n, zt_whole.data(), n);
+        for (const auto [c0, c1] :
+             {std::pair<int64_t, int64_t>{0, 7}, {7, 2048}, {2048, 2081}, {2081, 5000}})
             multiply_add_transposed(q.data.data(), rows, w, w, a.data.data() + c0, c1 - c0, n,
                                     zt_split.data() + c0, n);
         EXPECT_EQ(zt_whole, zt_split) << name(k);
