@@ -66,6 +66,24 @@ const Shape kShapes[] = {{1, 1, 1},    {1, 17, 5},    {3, 15, 6},     {4, 16, 7}
                          {7, 47, 13},  {9, 100, 25},  {13, 300, 37},  {2, 9000, 40}, {6, 4099, 74},
                          {300, 70, 3}, {520, 95, 14}, {11, 2500, 150}};
 
+// The largest |got(r, c) − exact| / Σ|terms| over the output, exact = start(r, c) + Σ_k term(r, c,
+// k) in double (start: zero without one).
+template <typename Term>
+double worst_error(const Strided& got, const Strided* start, int64_t terms, Term&& term) {
+    double worst = 0;
+    for (int64_t r = 0; r < got.rows; ++r)
+        for (int64_t c = 0; c < got.cols; ++c) {
+            double exact = start ? start->at(r, c) : 0.0, scale = std::abs(exact);
+            for (int64_t k = 0; k < terms; ++k) {
+                const double t = term(r, c, k);
+                exact += t;
+                scale += std::abs(t);
+            }
+            worst = std::max(worst, std::abs(got.at(r, c) - exact) / scale);
+        }
+    return worst;
+}
+
 TEST(ThinProducts, MultiplyMatchesADoubleReferenceAndKeepsThePadding) {
     std::mt19937 rng(7);
     for (const Kernel k : kernels()) {
@@ -75,16 +93,10 @@ TEST(ThinProducts, MultiplyMatchesADoubleReferenceAndKeepsThePadding) {
             Strided y(s.rows, s.w, 2, rng);
             multiply(a.data.data(), s.rows, s.n, a.stride, x.data.data(), s.w, x.stride,
                      y.data.data(), y.stride);
-            double worst = 0;
-            for (int64_t i = 0; i < s.rows; ++i)
-                for (int64_t p = 0; p < s.w; ++p) {
-                    double ref = 0, scale = 0;
-                    for (int64_t j = 0; j < s.n; ++j) {
-                        ref += double(a.at(i, j)) * x.at(p, j);
-                        scale += std::abs(double(a.at(i, j)) * x.at(p, j));
-                    }
-                    worst = std::max(worst, std::abs(y.at(i, p) - ref) / scale);
-                }
+            // y(i, p) = Σ_j a(i, j) x(p, j)
+            const double worst = worst_error(y, nullptr, s.n, [&](int64_t i, int64_t p, int64_t j) {
+                return double(a.at(i, j)) * x.at(p, j);
+            });
             EXPECT_LT(worst, 2e-6) << name(k) << " " << s.rows << " × " << s.n << " · " << s.w;
             EXPECT_TRUE(y.padding_intact()) << name(k) << " " << s.rows << " × " << s.n;
         }
@@ -101,16 +113,10 @@ TEST(ThinProducts, MultiplyAddTransposedAddsToZtAndKeepsThePadding) {
             const Strided before = zt;
             multiply_add_transposed(q.data.data(), s.rows, s.w, q.stride, a.data.data(), s.n,
                                     a.stride, zt.data.data(), zt.stride);
-            double worst = 0;
-            for (int64_t p = 0; p < s.w; ++p)
-                for (int64_t j = 0; j < s.n; ++j) {
-                    double ref = before.at(p, j), scale = std::abs(ref);
-                    for (int64_t i = 0; i < s.rows; ++i) {
-                        ref += double(q.at(i, p)) * a.at(i, j);
-                        scale += std::abs(double(q.at(i, p)) * a.at(i, j));
-                    }
-                    worst = std::max(worst, std::abs(zt.at(p, j) - ref) / scale);
-                }
+            // zt(p, j) = before(p, j) + Σ_i q(i, p) a(i, j)
+            const double worst = worst_error(
+                zt, &before, s.rows,
+                [&](int64_t p, int64_t j, int64_t i) { return double(q.at(i, p)) * a.at(i, j); });
             EXPECT_LT(worst, 2e-6) << name(k) << " " << s.rows << " × " << s.n << " · " << s.w;
             EXPECT_TRUE(zt.padding_intact()) << name(k) << " " << s.rows << " × " << s.n;
         }
