@@ -58,8 +58,9 @@ def test_codecs_list_their_parameters():
     # The shared factorization parameters are the same declaration in every such codec.
     for name in ("fmf", "pca-views", "lpca", "perceptual"):
         assert codecs[name][1]["quantize"] == {
-            "type": "choice", "default": "f16", "range": "f32|f16|u8",
-            "help": "factor storage: f32, f16 or u8 (8 bits with per-component scale)"}
+            "type": "choice", "default": "f16", "range": "f32|f16|u8|coded",
+            "help": "factor storage: f32, f16, u8 (8 bits with per-component scale) or coded "
+                    "(steps from quality=, texels by 8×8 DCT, entropy-coded)"}
     assert codecs["mlvq"][1]["threshold"]["default"] == "3e-5"
 
 

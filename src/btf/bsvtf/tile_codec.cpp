@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 
+#include "btf/util/dct8.h"
 #include "btf/util/error.h"
 #include "btf/util/half.h"
 #include "btf/util/parallel.h"
@@ -16,85 +17,6 @@ namespace {
 
 constexpr uint8_t kDct = 1, kLossless = 2;
 constexpr size_t kHeader = 9;
-
-// The orthonormal 8-point DCT-II basis: kBasis[k][n] = c_k cos((2n + 1) k π / 16).
-struct DctBasis {
-    double m[8][8];
-    DctBasis() {
-        for (int k = 0; k < 8; ++k)
-            for (int n = 0; n < 8; ++n)
-                m[k][n] = (k == 0 ? std::sqrt(1.0 / 8) : std::sqrt(2.0 / 8)) *
-                          std::cos((2 * n + 1) * k * M_PI / 16);
-    }
-};
-const DctBasis kBasis;
-
-// Zig-zag order of an 8 × 8 block (index = row · 8 + column).
-struct ZigZag {
-    int order[64];
-    ZigZag() {
-        int i = 0;
-        for (int s = 0; s < 15; ++s)
-            for (int t = 0; t <= s; ++t) {
-                const int r = (s % 2 == 0) ? s - t : t;
-                const int c = s - r;
-                if (r < 8 && c < 8) order[i++] = r * 8 + c;
-            }
-    }
-};
-const ZigZag kZigZag;
-
-void forward_dct(const double in[64], double out[64]) {
-    double tmp[64];
-    for (int r = 0; r < 8; ++r)
-        for (int k = 0; k < 8; ++k) {
-            double s = 0;
-            for (int n = 0; n < 8; ++n) s += kBasis.m[k][n] * in[r * 8 + n];
-            tmp[r * 8 + k] = s;
-        }
-    for (int c = 0; c < 8; ++c)
-        for (int k = 0; k < 8; ++k) {
-            double s = 0;
-            for (int n = 0; n < 8; ++n) s += kBasis.m[k][n] * tmp[n * 8 + c];
-            out[k * 8 + c] = s;
-        }
-}
-
-void inverse_dct(const double in[64], double out[64]) {
-    double tmp[64];
-    for (int c = 0; c < 8; ++c)
-        for (int n = 0; n < 8; ++n) {
-            double s = 0;
-            for (int k = 0; k < 8; ++k) s += kBasis.m[k][n] * in[k * 8 + c];
-            tmp[n * 8 + c] = s;
-        }
-    for (int r = 0; r < 8; ++r)
-        for (int n = 0; n < 8; ++n) {
-            double s = 0;
-            for (int k = 0; k < 8; ++k) s += kBasis.m[k][n] * tmp[r * 8 + k];
-            out[r * 8 + n] = s;
-        }
-}
-
-void put_varint(std::vector<uint8_t>& out, int64_t v) {
-    uint64_t z = (uint64_t(v) << 1) ^ uint64_t(v >> 63);
-    while (z >= 0x80) {
-        out.push_back(uint8_t(z | 0x80));
-        z >>= 7;
-    }
-    out.push_back(uint8_t(z));
-}
-
-int64_t get_varint(const uint8_t*& p, const uint8_t* end) {
-    uint64_t z = 0;
-    for (int shift = 0; shift < 64; shift += 7) {
-        if (p == end) throw Error("tile: the coefficients end early");
-        const uint8_t b = *p++;
-        z |= uint64_t(b & 0x7f) << shift;
-        if (!(b & 0x80)) return int64_t(z >> 1) ^ -int64_t(z & 1);
-    }
-    throw Error("tile: a coefficient is longer than 64 bits");
-}
 
 std::vector<uint8_t> deflate(const std::vector<uint8_t>& raw, int level, uint8_t format,
                              float step) {
@@ -147,9 +69,9 @@ std::vector<uint8_t> encode_tile(std::span<const uint16_t> tile, std::span<const
                             (size_t(by * 8 + r) * size_t(S) + size_t(bx * 8 + n)) * 4 + size_t(c);
                         block[r * 8 + n] = double(from_half(tile[i])) - predicted(prediction, i);
                     }
-                forward_dct(block, coef);
+                dct8::forward(block, coef);
                 for (int k = 0; k < 64; ++k)
-                    put_varint(raw, std::llround(coef[kZigZag.order[k]] / step));
+                    dct8::put_varint(raw, std::llround(coef[dct8::kZigZag[k]] / step));
             }
     return deflate(raw, deflate_level, kDct, step);
 }
@@ -190,8 +112,8 @@ void decode_tile(std::span<const uint8_t> payload, std::span<const float> predic
         for (int by = 0; by < blocks; ++by)
             for (int bx = 0; bx < blocks; ++bx) {
                 for (int k = 0; k < 64; ++k)
-                    coef[kZigZag.order[k]] = double(get_varint(p, end)) * step;
-                inverse_dct(coef, block);
+                    coef[dct8::kZigZag[k]] = double(dct8::get_varint(p, end, "tile")) * step;
+                dct8::inverse(coef, block);
                 for (int r = 0; r < 8; ++r)
                     for (int n = 0; n < 8; ++n) {
                         const size_t i =

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <tuple>
 
+#include "btf/codecs/factor/coded.h"
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/color.h"
 #include "btf/util/error.h"
@@ -28,6 +29,8 @@ std::string to_string(Quantization q) {
             return "f16";
         case Quantization::kU8:
             return "u8";
+        case Quantization::kCoded:
+            return "coded";
     }
     return "?";
 }
@@ -36,7 +39,8 @@ Quantization parse_quantization(const std::string& text) {
     if (text == "f32") return Quantization::kF32;
     if (text == "f16") return Quantization::kF16;
     if (text == "u8") return Quantization::kU8;
-    fail("unknown quantization '{}' (known: f32, f16, u8)", text);
+    if (text == "coded") return Quantization::kCoded;
+    fail("unknown quantization '{}' (known: f32, f16, u8, coded)", text);
 }
 
 std::string to_string(ColourBasis basis) {
@@ -70,6 +74,7 @@ size_t column_bytes(Quantization q, int64_t n) {
         case Quantization::kF32:
             return 4 * size_t(n);
         case Quantization::kF16:
+        case Quantization::kCoded:
             return 2 * size_t(n);
         case Quantization::kU8:
             return 8 + size_t(n);
@@ -352,6 +357,8 @@ void put_column(std::vector<uint8_t>& out, Quantization q, const float* v, int64
             }
             return;
         }
+        case Quantization::kCoded:
+            break;  // coded sections are written whole (coded::put_component)
     }
 }
 
@@ -374,8 +381,30 @@ const uint8_t* get_column(Quantization q, const uint8_t* in, float* v, int64_t n
             for (int64_t i = 0; i < n; ++i) v[i * stride] = head[0] + head[1] * float(in[i]);
             return in + n;
         }
+        case Quantization::kCoded:
+            break;  // coded sections are read whole (coded::get_component)
     }
     return in;
+}
+
+// The RMS of the model's values over every block's rows and texels: Σ mean² per row and texel
+// plus ‖A Bᵀ‖² = trace((AᵀA)(BᵀB)), in double.
+double value_rms(const Model& model) {
+    double sum = 0, count = 0;
+    for (const Block& b : model.blocks) {
+        const double texels = double(b.b.rows());
+        for (const float m : b.mean) sum += double(m) * m * texels;
+        const Eigen::MatrixXd a = b.a.cast<double>(), t = b.b.cast<double>();
+        sum += ((a.transpose() * a) * (t.transpose() * t)).trace();
+        count += double(b.a.rows()) * texels;
+    }
+    return count > 0 ? std::sqrt(sum / count) : 0.0;
+}
+
+// A block's texel factor as an image (one cluster: every texel of its level), else none.
+coded::Image texel_image(const Model& model, const Block& b) {
+    if (model.clusters != 1) return {};
+    return {model.level_width(b.level), model.level_height(b.level)};
 }
 
 std::string component_name(int block, int k) {
@@ -422,7 +451,7 @@ DirectionSet directions_from_json(const nlohmann::json& j) {
 }
 
 Package to_package(const Model& model, std::string_view codec, const nlohmann::json& params,
-                   Quantization quantization) {
+                   Quantization quantization, double quality) {
     model.validate(fmt::format("codec {}", codec));
     Package package;
     auto& h = package.header;
@@ -439,6 +468,12 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     m["log"] = model.colour.log;
     m["log_eps"] = model.colour.log_eps;
     m["quantization"] = to_string(quantization);
+    double step = 0;
+    if (quantization == Quantization::kCoded) {
+        if (!(quality >= 0 && quality <= 100)) fail("quality {} is outside [0, 100]", quality);
+        step = coded::value_step(quality, value_rms(model));
+        m["coding"] = {{"quality", quality}, {"step", step}};
+    }
     m["groups"] = model.groups;
     m["clusters"] = model.clusters;
     // Single-level models keep the header they always had (no "levels", no block "level").
@@ -506,6 +541,13 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
     for (const Entry& e : order) {
         const Block& b = model.blocks[e.block];
         PackageSection s = named_section(component_name(e.block, e.k));
+        if (quantization == Quantization::kCoded) {
+            coded::put_component(s.data, {b.a.data() + e.k, b.a.rows(), b.a.cols()},
+                                 {b.b.data() + e.k, b.b.rows(), b.b.cols()}, texel_image(model, b),
+                                 step);
+            package.sections.push_back(std::move(s));
+            continue;
+        }
         s.data.reserve(column_bytes(quantization, b.a.rows()) +
                        column_bytes(quantization, b.b.rows()));
         put_column(s.data, quantization, b.a.data() + e.k, b.a.rows(), b.a.cols());
@@ -646,7 +688,8 @@ Model from_package(const Package& package) {
                 model.block_rows(model.blocks[block].group, model.blocks[block].angular);
             const int64_t cols = model.block_texels(texel_lists, model.blocks[block].cluster,
                                                     model.blocks[block].level);
-            if (s.data.size() != column_bytes(q, rows) + column_bytes(q, cols))
+            if (q != Quantization::kCoded &&
+                s.data.size() != column_bytes(q, rows) + column_bytes(q, cols))
                 fail("section '{}' holds {} bytes, expected {}", s.name, s.data.size(),
                      column_bytes(q, rows) + column_bytes(q, cols));
             ++present[block];
@@ -663,7 +706,14 @@ Model from_package(const Package& package) {
             b.a.resize(model.block_rows(b.group, b.angular), k);
             b.b.resize(model.block_texels(texel_lists, b.cluster, b.level), k);
             for (int c = 0; c < k; ++c) {
-                const uint8_t* in = sections[i][c]->data.data();
+                const PackageSection& s = *sections[i][c];
+                if (q == Quantization::kCoded) {
+                    coded::get_component(
+                        s.data.data(), s.data.size(), {b.a.data() + c, b.a.rows(), k},
+                        {b.b.data() + c, b.b.rows(), k}, texel_image(model, b), s.name);
+                    continue;
+                }
+                const uint8_t* in = s.data.data();
                 in = get_column(q, in, b.a.data() + c, b.a.rows(), k);
                 get_column(q, in, b.b.data() + c, b.b.rows(), k);
             }
@@ -721,7 +771,7 @@ Model from_package(const Package& package) {
 Package FactorCodec::encode(const BtfSource& source, const Params& params,
                             Progress& progress) const {
     const Result result = factorize(source, params, progress);
-    return to_package(result.model, name(), result.params, result.quantization);
+    return to_package(result.model, name(), result.params, result.quantization, result.quality);
 }
 
 std::unique_ptr<Material> FactorCodec::open(const Package& package) const {

@@ -53,13 +53,19 @@ enum class Quantization {
     kF32,  ///< IEEE float32
     kF16,  ///< IEEE half (relative error ≤ 2⁻¹¹ of each value)
     kU8,   ///< 8 bits per value with a per-column (per component, per factor) scale and offset
+    /// Quantized with steps from one quality and entropy-coded: the texel factor by 8 × 8 DCT
+    /// (factor/coded.h)
+    kCoded,
 };
 std::string to_string(Quantization q);
-/// "f32", "f16" or "u8"; throws btf::Error otherwise.
+/// "f32", "f16", "u8" or "coded"; throws btf::Error otherwise.
 Quantization parse_quantization(const std::string& text);
 /// Bytes of one quantized factor column of n values (a component section holds the a and the b
-/// column of its component).
+/// column of its component); for kCoded, whose size depends on the values, the f16 size as an
+/// estimate.
 size_t column_bytes(Quantization q, int64_t n);
+/// The default of `quality` (coded storage, factor/coded.h).
+constexpr double kDefaultCodingQuality = 50;
 
 /// How RGB values become the planes that are factorized.
 enum class ColourBasis {
@@ -162,8 +168,10 @@ DirectionSet directions_from_json(const nlohmann::json& j);
 /// AngularInterpolator tables, for viewers), "clusters" (texel clusters, when more than one),
 /// "means" (all row means), then one section per component ("b<block>.k<k>": a's column then
 /// b's column) in decreasing energy over all blocks. `codec` and `params` go into the header.
+/// With kCoded, `quality` (0 to 100) sets the step (factor/coded.h); the header's model then
+/// holds "coding": {"quality", "step"}.
 Package to_package(const Model& model, std::string_view codec, const nlohmann::json& params,
-                   Quantization quantization);
+                   Quantization quantization, double quality = kDefaultCodingQuality);
 /// The model in a package or a clean prefix of one: blocks keep the components whose sections
 /// are present (possibly none: the means alone). Throws btf::Error naming the package's codec and
 /// the problem for inconsistent headers or section sizes.
@@ -274,6 +282,7 @@ class FactorCodec : public Codec {
         Model model;
         nlohmann::json params;  ///< every parameter as used, defaults included
         Quantization quantization = Quantization::kF16;
+        double quality = kDefaultCodingQuality;  ///< for kCoded
     };
     /// Reads `params` (reporting unknown ones) and factorizes `source`.
     virtual Result factorize(const BtfSource& source, const Params& params,

@@ -44,8 +44,10 @@ void declare_storage_and_svd(ParamSchema<Options>& schema) {
         .choice("quantize", &Options::quantization,
                 std::vector<std::pair<std::string, Quantization>>{{"f32", Quantization::kF32},
                                                                   {"f16", Quantization::kF16},
-                                                                  {"u8", Quantization::kU8}},
-                "factor storage: f32, f16 or u8 (8 bits with per-component scale)")
+                                                                  {"u8", Quantization::kU8},
+                                                                  {"coded", Quantization::kCoded}},
+                "factor storage: f32, f16, u8 (8 bits with per-component scale) or coded "
+                "(steps from quality=, texels by 8×8 DCT, entropy-coded)")
         .choice("svd", &Options::svd,
                 std::vector<std::pair<std::string, SvdMethod>>{{"subspace", SvdMethod::kSubspace},
                                                                {"krylov", SvdMethod::kBlockKrylov}},
@@ -59,6 +61,14 @@ void declare_storage_and_svd(ParamSchema<Options>& schema) {
         .integer("block", &Options::block, 0, 4096,
                  "krylov: columns per block (0: 2·(rank + oversampling)/(q + 2))")
         .integer("seed", &Options::seed, 0, 1 << 30, "random seed of the randomized SVD");
+}
+
+/// quality=… of coded storage (Options::coding_quality).
+template <class Options>
+void declare_coding(ParamSchema<Options>& schema) {
+    schema.number("quality", &Options::coding_quality, 0, 100,
+                  "quantize=coded: 0 to 100, each 10 more halving the quantization step (the "
+                  "step is 2^(-quality/10) of the values' RMS)");
 }
 
 /// The randomized SVD's settings from a codec's options: rank and centring from the caller.

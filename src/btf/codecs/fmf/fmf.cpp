@@ -43,6 +43,7 @@ const ParamSchema<Options>& schema() {
                                "rgb, decorrelated, per-channel or model11");
         s.flag("mean", &Options::subtract_mean, "subtract the mean ABRDF before factorizing");
         factor::declare_storage_and_svd(s);
+        factor::declare_coding(s);
         return s;
     }();
     return schema;
@@ -97,6 +98,7 @@ class FmfCodec final : public factor::FactorCodec {
         result.model = fmf::factorize(source, options, progress);
         result.params = fmf::schema().to_json(options);
         result.quantization = options.quantization;
+        result.quality = options.coding_quality;
         return result;
     }
 };

@@ -6,9 +6,11 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <random>
 
+#include "btf/codecs/factor/coded.h"
 #include "btf/codecs/factor/model.h"
 #include "btf/io/function_source.h"
 #include "btf/testing/support.h"
@@ -185,6 +187,34 @@ TEST(Fmf, PrefixesDecodeWithMonotonicallyDecreasingError) {
     }
 }
 
+// Coded storage keeps the order: a component's section never makes the error larger (one whose
+// quantization would cost more than it adds is stored as zeros), at the default quality and at
+// a coarse one, and the components that survive bring the error near the unquantized one.
+TEST(Fmf, CodedPrefixesDecodeWithMonotonicallyDecreasingError) {
+    const FunctionSource source = small_source(16);
+    const double exact = rmse(
+        source,
+        *fmf_codec().open(encode(source, Params({{"components", "12"}, {"quantize", "f32"}}))));
+    for (const std::string quality : {"50", "30"}) {
+        const Package full = encode(
+            source, Params({{"components", "12"}, {"quantize", "coded"}, {"quality", quality}}));
+        std::vector<double> errors;
+        for (int n = 2; n <= full.declared_sections; ++n) {  // after tables and means
+            Package prefix = full;
+            prefix.sections.resize(n);
+            errors.push_back(rmse(source, *fmf_codec().open(prefix)));
+            if (errors.size() > 1)
+                EXPECT_LE(errors.back(), errors[errors.size() - 2])
+                    << "quality " << quality << ", " << n << " sections";
+        }
+        EXPECT_LT(errors[3], 0.5 * errors[0]) << quality;
+        // Each component adds at most about Δ²/6 to the mean squared error (Δ²/12 from each
+        // factor), and the source has rank 5.
+        const double step = full.header.at("model").at("coding").at("step").get<double>();
+        EXPECT_LT(errors.back(), exact + std::sqrt(5.0 / 6.0) * step) << quality;
+    }
+}
+
 TEST(Fmf, DecorrelatedColourAllocatesComponentsByEnergy) {
     const Sampling s = small_sampling(6, 8);
     const FunctionSource grey(s, 8, 8, [s](int v, int l, int x, int y) {
@@ -199,22 +229,35 @@ TEST(Fmf, DecorrelatedColourAllocatesComponentsByEnergy) {
 }
 
 // Largest error of the quantized factors, per sample: Σ_k |a||Δb| + |b||Δa| + |Δa||Δb| with the
-// per-value bounds of the storage (f16: relative 2⁻¹¹; u8: half a step of the column's range).
+// per-value bounds of the storage (f16: relative 2⁻¹¹; u8: half a step of the column's range;
+// coded: half of a's step, and for the DCT-coded b factor/coded.h's kImageErrorPerStep steps,
+// the steps as each component section states them).
 TEST(Fmf, QuantizedDecodingStaysWithinTheDocumentedBounds) {
     const FunctionSource source = small_source();
     const Params base({{"components", "10"}, {"quantize", "f32"}});
     const auto exact = fmf_codec().open(encode(source, base));
     const factor::Model& model = dynamic_cast<const FactorMaterial&>(*exact).model();
     const factor::Block& block = model.blocks[0];
-    for (const std::string q : {"f16", "u8"}) {
+    for (const std::string q : {"f16", "u8", "coded"}) {
         Params params = base;
         params.set("quantize", q);
-        const auto material = fmf_codec().open(encode(source, params));
+        if (q == "coded") params.set("quality", "25");
+        const Package package = encode(source, params);
+        const auto material = fmf_codec().open(package);
         std::vector<float> da(block.components()), db(block.components());
         for (int k = 0; k < block.components(); ++k) {
             if (q == "u8") {
                 da[k] = (block.a.col(k).maxCoeff() - block.a.col(k).minCoeff()) / 255 / 2 * 1.001f;
                 db[k] = (block.b.col(k).maxCoeff() - block.b.col(k).minCoeff()) / 255 / 2 * 1.001f;
+            }
+            if (q == "coded") {
+                float steps[2];
+                const PackageSection* s = package.find(fmt::format("b0.k{}", k));
+                ASSERT_NE(s, nullptr);
+                ASSERT_EQ(s->data[2], 1) << "the 10 × 10 texels are DCT-coded as an image";
+                std::memcpy(steps, s->data.data() + 4, 8);
+                da[k] = steps[0] / 2 * 1.001f;
+                db[k] = float(factor::coded::kImageErrorPerStep) * steps[1] * 1.001f;
             }
         }
         double worst_ratio = 0;
@@ -232,6 +275,8 @@ TEST(Fmf, QuantizedDecodingStaysWithinTheDocumentedBounds) {
                             const double a = std::abs(block.a(row, k)), b = std::abs(block.b(t, k));
                             const double ea = q == "f16" ? a * std::ldexp(1.0, -11) : da[k];
                             const double eb = q == "f16" ? b * std::ldexp(1.0, -11) : db[k];
+                            // The decoded factors are those of the same SVD (the encoding is
+                            // deterministic), so the bound holds sample by sample.
                             bound += a * eb + b * ea + ea * eb;
                         }
                         ASSERT_LE(std::abs(diff[c]), bound) << q;
@@ -278,7 +323,7 @@ TEST(Fmf, RejectsBadParameters) {
                   encode(source, Params({{"componets", "3"}}));
               }),
               "codec fmf: unknown parameter 'componets' (known: components, colour, log, log-eps, "
-              "mean, quantize, svd, oversampling, power-iterations, block, seed)");
+              "mean, quantize, svd, oversampling, power-iterations, block, seed, quality)");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"components", "0"}}));
               }),
@@ -290,7 +335,7 @@ TEST(Fmf, RejectsBadParameters) {
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"quantize", "u4"}}));
               }),
-              "parameter quantize: 'u4' is not one of f32, f16, u8");
+              "parameter quantize: 'u4' is not one of f32, f16, u8, coded");
 }
 
 // Private writable memory the process has mapped (VmData), in bytes.

@@ -66,6 +66,7 @@ const ParamSchema<Options>& schema() {
             .integer("projection", &Options::projection, 1, 4096,
                      "rank of the subspace the texels are clustered in");
         factor::declare_storage_and_svd(s);
+        factor::declare_coding(s);
         return s;
     }();
     return schema;
@@ -111,7 +112,7 @@ class LpcaCodec final : public factor::FactorCodec {
                      Progress& progress) const override {
         const Options options = schema().parse(params);
         return {lpca::factorize(source, options, progress), schema().to_json(options),
-                options.quantization};
+                options.quantization, options.coding_quality};
     }
 };
 

@@ -27,6 +27,7 @@ struct Options {
     int power_iterations = 2;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;
+    double coding_quality = factor::kDefaultCodingQuality;  ///< quantize=coded
 };
 
 /// Reads the options from codec parameters (the registry's params()); checks ranges and reports

@@ -65,6 +65,7 @@ const ParamSchema<Options>& schema() {
         factor::declare_colour(s, {factor::ColourBasis::kRgb, factor::ColourBasis::kDecorrelated},
                                "rgb (colour inside the rows) or decorrelated (luminance/chroma)");
         factor::declare_storage_and_svd(s);
+        factor::declare_coding(s);
         return s;
     }();
     return schema;
@@ -89,7 +90,7 @@ class PcaViewsCodec final : public factor::FactorCodec {
                      Progress& progress) const override {
         const Options options = schema().parse(params);
         return {pca_views::factorize(source, options, progress), schema().to_json(options),
-                options.quantization};
+                options.quantization, options.coding_quality};
     }
 };
 

@@ -1,0 +1,227 @@
+#include "btf/codecs/factor/coded.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "btf/util/dct8.h"
+#include "btf/util/error.h"
+
+namespace btf::factor::coded {
+
+namespace {
+
+constexpr uint8_t kPlain = 0, kDctImage = 1;
+constexpr size_t kHead = 12;  // format, a stride, b kind, b stride, step a, step b
+constexpr int kMaxStride = 64;
+// Quantized values are kept within ±2³¹ (a step far below a value's size would need more).
+constexpr double kMaxCode = 2147483647.0;
+
+double rms(ConstColumn c) {
+    double sum = 0;
+    for (int64_t i = 0; i < c.n; ++i) sum += double(c.data[i * c.stride]) * c.data[i * c.stride];
+    return c.n > 0 ? std::sqrt(sum / double(c.n)) : 0.0;
+}
+
+// The step for one side: Δ over the RMS of the other side (1 where that is 0: the product is 0
+// whatever this side holds).
+float side_step(double step, double other_rms) {
+    const double s = step / other_rms;
+    return std::isfinite(s) && s > 0 && s < 1e30 ? float(s) : 1.0f;
+}
+
+int64_t rounded(double v) {
+    return int64_t(std::clamp(std::nearbyint(v), -kMaxCode, kMaxCode));
+}
+
+// Uniform rounding, as differences to the code `stride` values before.
+void put_plain(std::vector<uint8_t>& out, ConstColumn c, float step, int stride) {
+    std::vector<int64_t> codes(size_t(c.n));
+    for (int64_t i = 0; i < c.n; ++i) {
+        codes[size_t(i)] = rounded(double(c.data[i * c.stride]) / step);
+        dct8::put_varint(out, codes[size_t(i)] - (i >= stride ? codes[size_t(i - stride)] : 0));
+    }
+}
+
+const uint8_t* get_plain(const uint8_t* p, const uint8_t* end, Column c, float step, int stride,
+                         std::string_view what) {
+    std::vector<int64_t> codes(size_t(c.n));
+    for (int64_t i = 0; i < c.n; ++i) {
+        const int64_t d = dct8::get_varint(p, end, what);
+        // Wrapping arithmetic: a hostile difference must not overflow (the value is then checked
+        // for being finite like every decoded factor).
+        const int64_t code =
+            int64_t(uint64_t(d) + uint64_t(i >= stride ? codes[size_t(i - stride)] : 0));
+        codes[size_t(i)] = code;
+        c.data[i * c.stride] = float(double(code) * step);
+    }
+    return p;
+}
+
+int blocks_along(int size) {
+    return (size + 7) / 8;
+}
+
+void put_image(std::vector<uint8_t>& out, ConstColumn c, Image image, float step) {
+    const int bw = blocks_along(image.width), bh = blocks_along(image.height);
+    const size_t blocks = size_t(bw) * size_t(bh);
+    std::vector<int64_t> codes(blocks * 64);
+    double in[64], coef[64];
+    for (int by = 0; by < bh; ++by)
+        for (int bx = 0; bx < bw; ++bx) {
+            for (int r = 0; r < 8; ++r)
+                for (int n = 0; n < 8; ++n) {
+                    const int y = (by * 8 + r) % image.height, x = (bx * 8 + n) % image.width;
+                    in[r * 8 + n] = c.data[(int64_t(y) * image.width + x) * c.stride];
+                }
+            dct8::forward(in, coef);
+            int64_t* q = &codes[(size_t(by) * size_t(bw) + size_t(bx)) * 64];
+            for (int k = 0; k < 64; ++k) {
+                const double v = coef[dct8::kZigZag[k]] / step;
+                const double m = std::floor(std::abs(v) + 1.0 / 3.0);
+                q[k] = int64_t(std::min(m, kMaxCode)) * (v < 0 ? -1 : 1);
+            }
+        }
+    for (int k = 0; k < 64; ++k) {
+        int64_t previous = 0;
+        for (size_t b = 0; b < blocks; ++b) {
+            const int64_t v = codes[b * 64 + size_t(k)];
+            dct8::put_varint(out, k == 0 ? v - previous : v);
+            previous = v;
+        }
+    }
+}
+
+const uint8_t* get_image(const uint8_t* p, const uint8_t* end, Column c, Image image, float step,
+                         std::string_view what) {
+    const int bw = blocks_along(image.width), bh = blocks_along(image.height);
+    const size_t blocks = size_t(bw) * size_t(bh);
+    std::vector<int64_t> codes(blocks * 64);
+    for (int k = 0; k < 64; ++k) {
+        int64_t previous = 0;
+        for (size_t b = 0; b < blocks; ++b) {
+            const int64_t d = dct8::get_varint(p, end, what);
+            // Wrapping arithmetic: a hostile difference must not overflow (the value is then
+            // checked for being finite like every decoded factor).
+            const int64_t v = k == 0 ? int64_t(uint64_t(d) + uint64_t(previous)) : d;
+            codes[b * 64 + size_t(k)] = v;
+            previous = v;
+        }
+    }
+    double coef[64], out[64];
+    for (int by = 0; by < bh; ++by)
+        for (int bx = 0; bx < bw; ++bx) {
+            const int64_t* q = &codes[(size_t(by) * size_t(bw) + size_t(bx)) * 64];
+            for (int k = 0; k < 64; ++k) coef[dct8::kZigZag[k]] = double(q[k]) * step;
+            dct8::inverse(coef, out);
+            for (int r = 0; r < 8; ++r)
+                for (int n = 0; n < 8; ++n) {
+                    const int y = by * 8 + r, x = bx * 8 + n;
+                    if (y < image.height && x < image.width)
+                        c.data[(int64_t(y) * image.width + x) * c.stride] = float(out[r * 8 + n]);
+                }
+        }
+    return p;
+}
+
+bool is_image(Image image, int64_t n) {
+    return image.width > 0 && image.height > 0 && int64_t(image.width) * image.height == n;
+}
+
+}  // namespace
+
+double value_step(double quality, double rms) {
+    return std::exp2(-quality / 10.0) * rms;
+}
+
+namespace {
+
+void put_coded(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image, float step_a,
+               float step_b) {
+    // a's prediction distance: the one that codes shortest (3 for rgb rows: the same channel of
+    // the previous light; 1 for planes).
+    std::vector<uint8_t> best;
+    int best_stride = 1;
+    for (const int stride : {1, 2, 3, 4, 6}) {
+        std::vector<uint8_t> trial;
+        put_plain(trial, a, step_a, stride);
+        if (best.empty() || trial.size() < best.size()) {
+            best.swap(trial);
+            best_stride = stride;
+        }
+    }
+    const bool dct = is_image(image, b.n);
+    const uint8_t head[4] = {kFormat, uint8_t(best_stride), dct ? kDctImage : kPlain,
+                             uint8_t(dct ? 0 : 1)};
+    out.insert(out.end(), head, head + 4);
+    const float steps[2] = {step_a, step_b};
+    const auto* bytes = reinterpret_cast<const uint8_t*>(steps);
+    out.insert(out.end(), bytes, bytes + 8);
+    out.insert(out.end(), best.begin(), best.end());
+    if (dct)
+        put_image(out, b, image, step_b);
+    else
+        put_plain(out, b, step_b, 1);
+}
+
+double dot(ConstColumn x, const std::vector<float>& y) {
+    double sum = 0;
+    for (int64_t i = 0; i < x.n; ++i) sum += double(x.data[i * x.stride]) * y[size_t(i)];
+    return sum;
+}
+
+double squared(const std::vector<float>& x) {
+    double sum = 0;
+    for (const float v : x) sum += double(v) * v;
+    return sum;
+}
+
+}  // namespace
+
+void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image,
+                   double step) {
+    const float step_a = side_step(step, rms(b)), step_b = side_step(step, rms(a));
+    std::vector<uint8_t> coded;
+    put_coded(coded, a, b, image, step_a, step_b);
+    // The component as decoded, â b̂ᵀ, lowers the error of the values it is added to only if
+    // ‖a bᵀ − â b̂ᵀ‖² < ‖a bᵀ‖², i.e. 2 (a·â)(b·b̂) > ‖â‖²‖b̂‖² (the rest of the residual is
+    // orthogonal to a); otherwise it is stored as zeros, so that a longer prefix is never worse.
+    std::vector<float> a_hat(size_t(a.n)), b_hat(size_t(b.n));
+    get_component(coded.data(), coded.size(), {a_hat.data(), a.n, 1}, {b_hat.data(), b.n, 1},
+                  image, "(encoding)");
+    if (!(2 * dot(a, a_hat) * dot(b, b_hat) > squared(a_hat) * squared(b_hat))) {
+        const std::vector<float> zero_a(size_t(a.n), 0.0f), zero_b(size_t(b.n), 0.0f);
+        coded.clear();
+        put_coded(coded, {zero_a.data(), a.n, 1}, {zero_b.data(), b.n, 1}, image, step_a, step_b);
+    }
+    out.insert(out.end(), coded.begin(), coded.end());
+}
+
+void get_component(const uint8_t* data, size_t size, Column a, Column b, Image image,
+                   std::string_view name) {
+    const std::string what = fmt::format("section '{}'", name);
+    if (size < kHead) fail("{}: {} bytes, shorter than a coded component's head", what, size);
+    if (data[0] != kFormat) fail("{}: unknown coded format {}", what, int(data[0]));
+    const int a_stride = data[1], kind = data[2], b_stride = data[3];
+    float steps[2];
+    std::memcpy(steps, data + 4, 8);
+    if (a_stride < 1 || a_stride > kMaxStride) fail("{}: prediction distance {}", what, a_stride);
+    if (kind != kPlain && kind != kDctImage) fail("{}: unknown texel coding {}", what, kind);
+    if (kind == kDctImage && !is_image(image, b.n))
+        fail("{}: DCT-coded texels, but the block's texels are not an image", what);
+    if (kind == kPlain && (b_stride < 1 || b_stride > kMaxStride))
+        fail("{}: prediction distance {}", what, b_stride);
+    for (const float s : steps)
+        if (!(s > 0) || !std::isfinite(s)) fail("{}: quantization step {}", what, s);
+    const uint8_t* p = data + kHead;
+    const uint8_t* end = data + size;
+    p = get_plain(p, end, a, steps[0], a_stride, what);
+    p = kind == kDctImage ? get_image(p, end, b, image, steps[1], what)
+                          : get_plain(p, end, b, steps[1], b_stride, what);
+    if (p != end) fail("{}: {} bytes after the coded factors", what, end - p);
+}
+
+}  // namespace btf::factor::coded

@@ -1,0 +1,62 @@
+#pragma once
+/// Coded factor storage (`quantize=coded`): each component section holds its angular factor a
+/// and its texel factor b quantized with steps chosen from one value-domain step Δ, and
+/// entropy-coded along their structure (docs/formats.md, "Coded components").
+///
+/// The steps are a reverse water-filling: component k's a is quantized with Δ / rms(b_k) and
+/// its b with Δ / rms(a_k), so that either side's rounding adds the same error to the values
+/// (Δ²/12 per sample where a coefficient is not zeroed) whatever the component's energy; the
+/// components and coefficients too weak for Δ are left out by the quantizer (they cost one
+/// short code each). Δ comes from `quality` Q ∈ [0, 100]: Δ = 2^(−Q/10) · the RMS of the
+/// model's values, so each 10 more halves the step.
+///
+/// a: uniform rounding, coded as differences to the value `stride` rows before (the same
+/// channel of the previous light), zig-zag varints. b: where b is an image (W × H texels of a
+/// level, one cluster), 8 × 8 DCT blocks of the image extended periodically to a multiple of 8
+/// (the evaluator wraps around the edges), quantized with a dead zone (|c|/step + 1/3, rounded
+/// down: coefficients under 2/3 of a step become 0) and written band by band (every block's
+/// first coefficient in zig-zag order, as differences along the blocks, then every block's
+/// second, …); elsewhere (lpca's clusters) uniform rounding with differences like a. The
+/// package container's zstd codes the varints.
+
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+namespace btf::factor::coded {
+
+constexpr uint8_t kFormat = 1;
+
+/// One column of a factor: n values, `stride` floats apart.
+struct Column {
+    float* data;
+    int64_t n, stride;
+};
+struct ConstColumn {
+    const float* data;
+    int64_t n, stride;
+};
+
+/// The texel factor's shape: an image of width × height texels (n = width · height), or
+/// width = height = 0 for values without a neighbourhood.
+struct Image {
+    int width = 0, height = 0;
+};
+
+/// Value-domain step for `quality` and the RMS of the values (see above).
+double value_step(double quality, double rms);
+
+/// Appends the coded section of one component.
+void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image,
+                   double step);
+/// Decodes a section written by put_component into a and b (whose n and image must be those it
+/// was written with); throws btf::Error "section '<name>': …" for a damaged or foreign payload.
+void get_component(const uint8_t* data, size_t size, Column a, Column b, Image image,
+                   std::string_view name);
+
+/// The largest error of a decoded b value: every one of the 64 coefficients of its block off by
+/// at most 2/3 of a step (the dead zone), each weighted by at most 1/4 (the largest value of a
+/// product of two 8-point orthonormal DCT basis functions): 64 · 2/3 · 1/4 · step.
+constexpr double kImageErrorPerStep = 64.0 * 2.0 / 3.0 / 4.0;
+
+}  // namespace btf::factor::coded
