@@ -9,6 +9,7 @@
 
 #include "btf/util/dct8.h"
 #include "btf/util/error.h"
+#include "btf/util/half.h"
 
 namespace btf::factor::coded {
 
@@ -31,6 +32,12 @@ double rms(ConstColumn c) {
 float side_step(double step, double other_rms) {
     const double s = step / other_rms;
     return std::isfinite(s) && s > 0 && s < 1e30 ? float(s) : 1.0f;
+}
+
+// Decoded values are rounded to half floats: the evaluator then keeps the rows as halves, as for
+// f16 packages (half the memory per query; FactorMaterial).
+float as_half(double v) {
+    return from_half(to_half(float(v)));
 }
 
 int64_t rounded(double v) {
@@ -56,7 +63,7 @@ const uint8_t* get_plain(const uint8_t* p, const uint8_t* end, Column c, float s
         const int64_t code =
             int64_t(uint64_t(d) + uint64_t(i >= stride ? codes[size_t(i - stride)] : 0));
         codes[size_t(i)] = code;
-        c.data[i * c.stride] = float(double(code) * step);
+        c.data[i * c.stride] = as_half(double(code) * step);
     }
     return p;
 }
@@ -121,7 +128,7 @@ const uint8_t* get_image(const uint8_t* p, const uint8_t* end, Column c, Image i
                 for (int n = 0; n < 8; ++n) {
                     const int y = by * 8 + r, x = bx * 8 + n;
                     if (y < image.height && x < image.width)
-                        c.data[(int64_t(y) * image.width + x) * c.stride] = float(out[r * 8 + n]);
+                        c.data[(int64_t(y) * image.width + x) * c.stride] = as_half(out[r * 8 + n]);
                 }
         }
     return p;
@@ -190,8 +197,8 @@ void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Imag
     // ‖a bᵀ − â b̂ᵀ‖² < ‖a bᵀ‖², i.e. 2 (a·â)(b·b̂) > ‖â‖²‖b̂‖² (the rest of the residual is
     // orthogonal to a); otherwise it is stored as zeros, so that a longer prefix is never worse.
     std::vector<float> a_hat(size_t(a.n)), b_hat(size_t(b.n));
-    get_component(coded.data(), coded.size(), {a_hat.data(), a.n, 1}, {b_hat.data(), b.n, 1},
-                  image, "(encoding)");
+    get_component(coded.data(), coded.size(), {a_hat.data(), a.n, 1}, {b_hat.data(), b.n, 1}, image,
+                  "(encoding)");
     if (!(2 * dot(a, a_hat) * dot(b, b_hat) > squared(a_hat) * squared(b_hat))) {
         const std::vector<float> zero_a(size_t(a.n), 0.0f), zero_b(size_t(b.n), 0.0f);
         coded.clear();

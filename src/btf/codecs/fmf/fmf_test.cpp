@@ -208,6 +208,8 @@ TEST(Fmf, CodedPrefixesDecodeWithMonotonicallyDecreasingError) {
                     << "quality " << quality << ", " << n << " sections";
         }
         EXPECT_LT(errors[3], 0.5 * errors[0]) << quality;
+        // Decoded to half floats: the evaluator keeps half rows, as for f16 packages.
+        EXPECT_TRUE(dynamic_cast<const FactorMaterial&>(*fmf_codec().open(full)).half_rows());
         // Each component adds at most about Δ²/6 to the mean squared error (Δ²/12 from each
         // factor), and the source has rank 5.
         const double step = full.header.at("model").at("coding").at("step").get<double>();
@@ -256,8 +258,11 @@ TEST(Fmf, QuantizedDecodingStaysWithinTheDocumentedBounds) {
                 ASSERT_NE(s, nullptr);
                 ASSERT_EQ(s->data[2], 1) << "the 10 × 10 texels are DCT-coded as an image";
                 std::memcpy(steps, s->data.data() + 4, 8);
-                da[k] = steps[0] / 2 * 1.001f;
-                db[k] = float(factor::coded::kImageErrorPerStep) * steps[1] * 1.001f;
+                // Plus the rounding of the decoded values to halves.
+                da[k] =
+                    steps[0] / 2 * 1.001f + std::ldexp(block.a.col(k).cwiseAbs().maxCoeff(), -10);
+                db[k] = float(factor::coded::kImageErrorPerStep) * steps[1] * 1.001f +
+                        std::ldexp(block.b.col(k).cwiseAbs().maxCoeff(), -10);
             }
         }
         double worst_ratio = 0;
