@@ -40,7 +40,7 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
                            ->check(CLI::Range(1, 1 << 20));
     auto* quantize = cmd->add_option("--quantize", args->quantize,
                                      "factor storage (the codec parameter 'quantize')")
-                         ->check(CLI::IsMember({"f32", "f16", "u8"}));
+                         ->check(CLI::IsMember({"f32", "f16", "u8", "coded"}));
     cmd->add_option("--zstd", args->zstd, "zstd level of the package sections (0 = store raw)")
         ->check(CLI::Range(0, 22));
     cmd->add_option("-p,--param", args->params,

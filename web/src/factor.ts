@@ -14,13 +14,14 @@
 // - angular levels (perceptual): a block of angular level m stores a on subsets of the views and
 //   lights, up-sampled with the weights of section "angular";
 // colour rgb, decorrelated, per-channel, model11 (UBO2014 DFMF colour model 11) or lab, with or
-// without log; factors quantized f32, f16 or u8.
+// without log; factors quantized f32, f16 or u8, or coded (coded.ts).
 
+import { decodeCodedComponent } from "./coded";
 import { halfToFloat } from "./half";
 import { readTablesSection, type InterpTables, type Weights } from "./interp";
 
 export type ColourBasis = "rgb" | "decorrelated" | "per-channel" | "model11" | "lab";
-export type Quantization = "f32" | "f16" | "u8";
+export type Quantization = "f32" | "f16" | "u8" | "coded";
 /** The codecs whose packages hold a factor model. */
 export const FACTOR_CODECS = ["fmf", "pca-views", "lpca", "perceptual"] as const;
 export type FactorCodec = (typeof FACTOR_CODECS)[number];
@@ -122,8 +123,8 @@ function readFields(name: string, codec: FactorCodec, h: Record<string, unknown>
   if (typeof m.log_eps !== "number") throw new Error("header field 'model.log_eps' must be a number");
   if (m.log && colour === "lab") throw new Error("log with lab colour");
   const quantization = m.quantization;
-  if (quantization !== "f32" && quantization !== "f16" && quantization !== "u8")
-    throw new Error(`unknown quantization ${JSON.stringify(quantization)} (known: f32, f16, u8)`);
+  if (quantization !== "f32" && quantization !== "f16" && quantization !== "u8" && quantization !== "coded")
+    throw new Error(`unknown quantization ${JSON.stringify(quantization)} (known: f32, f16, u8, coded)`);
   const nV = views.theta.length, nL = lights.theta.length;
 
   const groupsJson = m.groups as unknown;
@@ -229,9 +230,9 @@ export function storedRows(info: FactorInfo, block: FactorBlock): number {
   return a.views.length * a.lights.length * info.channels;
 }
 
-/** Bytes of one quantized column of n values (column_bytes in model.cpp). */
+/** Bytes of one quantized column of n values (column_bytes in model.cpp; coded: the f16 size, an estimate). */
 export function columnBytes(q: Quantization, n: number): number {
-  return q === "f32" ? 4 * n : q === "f16" ? 2 * n : 8 + n;
+  return q === "f32" ? 4 * n : q === "f16" || q === "coded" ? 2 * n : 8 + n;
 }
 
 /** Decodes one quantized column of n values starting at byte `at`. */
@@ -429,6 +430,13 @@ export class FactorModel {
       throw new Error(`section '${name}' needs section 'angular' (the up-sampling of the angular levels), which this package lacks: compress it again with a current btf`);
     const rows = storedRows(info, block), texels = this.blockTexels(block);
     const q = info.quantization;
+    if (q === "coded") {
+      const image = info.clusters === 1 ? { width: info.width >> block.level, height: info.height >> block.level } : null;
+      const { a, b } = decodeCodedComponent(data, rows, texels, image, name);
+      this.a[id.block].push(block.angular > 0 ? this.upsample(a, block.angular) : a);
+      this.b[id.block].push(b);
+      return id;
+    }
     const expected = columnBytes(q, rows) + columnBytes(q, texels);
     if (data.length !== expected) throw new Error(`section '${name}' holds ${data.length} bytes, expected ${expected}`);
     const a = decodeColumn(q, data, 0, rows);
@@ -656,7 +664,8 @@ export function makeLayout(info: FactorInfo): Layout {
     atlasHeight: Math.max(H, y),
     mipLevels,
     mips,
-    half: info.quantization === "f16",
+    // f16 and coded factors are half floats, which half textures hold exactly.
+    half: info.quantization === "f16" || info.quantization === "coded",
     layerBase: planeBlocks.map((e) => aBase[e]),
     layerCount: planeBlocks.map((e) => aCapacity[e]),
   };

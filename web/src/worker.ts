@@ -330,7 +330,7 @@ function onSection(s: DecodedSection): void {
     const mips = mipChain(L, full);
     // f16 packages: level 0 of a full-resolution block keeps the stored half bits (exact); the
     // averaged and up-sampled levels are rounded.
-    const level0Bits = L.half && b.level === 0 ? columnHalfBits(s.data, columnBytes("f16", storedRows(i, b)), i.width * i.height) : null;
+    const level0Bits = i.quantization === "f16" && b.level === 0 ? columnHalfBits(s.data, columnBytes("f16", storedRows(i, b)), i.width * i.height) : null;
     mips.forEach((level, mi) => {
       const r = L.mips[mi];
       for (let y = 0; y < r.h; ++y)

@@ -14,9 +14,10 @@ import { ARTIFACTS, listEntry, makeFixtures, makeSite, run } from "./fixtures.mj
 import { startServer } from "./server.mjs";
 
 const OUT = path.join(ARTIFACTS, "codecs");
-/** codec → the fixture package that shows it. */
+/** codec (or codec-coded: its coded storage) → the fixture package that shows it. */
 export const CODEC_FIXTURES = {
   fmf: "woven_fabric",
+  "fmf-coded": "woven_coded",
   "pca-views": "woven_pca",
   lpca: "woven_lpca",
   perceptual: "woven_perceptual",
@@ -75,7 +76,7 @@ test("each codec's settled frame matches btf render of the same scene within a m
       await render(page);
       const s = await state(page);
       assert.deepEqual(s.objects, [{ shape: "sphere", material: id, visible: true }]);
-      assert.equal(s.materials[0].codec, codec);
+      assert.equal(s.materials[0].codec, codec.replace(/-coded$/, ""));
       assert.equal(s.materials[0].components, s.materials[0].totalComponents);
       const viewer = path.join(OUT, `${codec}.viewer.ppm`);
       writePpm(viewer, await pixels(page));
@@ -89,7 +90,9 @@ test("each codec's settled frame matches btf render of the same scene within a m
   }
   writeFileSync(path.join(OUT, "viewer-vs-cpp.json"), JSON.stringify(summary, null, 1));
   // One picture of all codecs side by side (docs/viewer.md), each sphere its codec's package.
-  const ids = Object.values(CODEC_FIXTURES);
+  const ids = Object.entries(CODEC_FIXTURES)
+    .filter(([codec]) => !codec.endsWith("-coded"))
+    .map(([, id]) => id);
   const objects = ids.map((id, i) => `sphere:${id}@${(i - (ids.length - 1) / 2) * 2.2},0,0`).join(";");
   const { page, problems } = await openPage(browser, server.url, `objects=${objects}&camera=0,0.8,4.8&size=880x200&light=0.1,0.6,1&deterministic=1&hud=0`);
   try {

@@ -168,7 +168,7 @@ function randomQueries(n, seed) {
 }
 
 test("the CPU evaluator matches `btf eval` for every factor codec and colour, log and quantization variant", () => {
-  const ids = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_pca_declog", "woven_lpca", "woven_lpca_dec", "woven_perceptual", "woven_perceptual_u8", "woven_pca_f32", "woven_lpca_u8", "woven_perceptual_f32"];
+  const ids = ["woven_fabric", "woven_declog", "woven_perchannel", "woven_model11", "woven_pca", "woven_pca_declog", "woven_lpca", "woven_lpca_dec", "woven_perceptual", "woven_perceptual_u8", "woven_pca_f32", "woven_lpca_u8", "woven_perceptual_f32", "woven_coded", "woven_lpca_coded", "woven_perceptual_coded"];
   ids.forEach((id, i) => {
     const { model, tables } = decode(fx.packages[id]);
     const queries = [...QUERIES, ...randomQueries(200, 17 + i)];
