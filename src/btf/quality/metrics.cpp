@@ -252,7 +252,7 @@ struct ImageSums {
     std::array<double, 3> ssim{};  // Y, Cr, Cb
 };
 
-struct Scratch {
+struct SsimScratch {
     Image ref, test;
     std::vector<float> planes;  // Y, Cr, Cb of the reference, then of the test
     std::vector<uint32_t> histogram = std::vector<uint32_t>(size_t(kHistogramBins) + 1, 0);
@@ -329,12 +329,12 @@ Metrics compare(const BtfSource& reference, const BtfSource& test, const Compare
     std::vector<ImageSums> sums(size_t(m.images));
     std::vector<int64_t> histogram(sel.de2000 ? size_t(kHistogramBins) + 1 : 0, 0);
     std::mutex histogram_mutex;
-    tbb::enumerable_thread_specific<Scratch> scratch;
+    tbb::enumerable_thread_specific<SsimScratch> scratch;
 
     progress.begin("comparing", uint64_t(m.images));
     parallel_for(0, m.images, [&](int64_t i) {
         const int view = int(i / nl), light = int(i % nl);
-        Scratch& s = scratch.local();
+        SsimScratch& s = scratch.local();
         reference.read_image(view, light, s.ref);
         test.read_image(view, light, s.test);
         auto check_shape = [&](const Image& image, const std::string& name) {

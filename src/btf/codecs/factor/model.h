@@ -277,6 +277,24 @@ class FactorCodec : public Codec {
     Package encode(const BtfSource& source, const Params& params, Progress& progress) const final;
     std::unique_ptr<Material> open(const Package& package) const final;
 
+    /// What encode_to_size() chose.
+    struct SizeChoice {
+        int components = 0;      ///< kept, of the factorization's
+        int factorized = 0;      ///< components the factorization made
+        double quality = -1;     ///< coded storage's quality (−1: another storage)
+        uint64_t bytes = 0;      ///< the package file's size
+        double model_error = 0;  ///< ‖M_C − M̂‖_F, the kept model against the unquantized one
+    };
+    /// encode() to a package file of at most `bytes` (as write_package writes it with `write`),
+    /// at the lowest error found: factorizes once with `params`, then chooses how many components
+    /// to keep (the first ones in the package's order) and, with quantize=coded, the quality,
+    /// by the error each choice leaves against the unquantized model (Gram matrices of the
+    /// factors) and the bytes it takes. Throws btf::Error when even one component at quality 0
+    /// does not fit.
+    Package encode_to_size(const BtfSource& source, const Params& params, uint64_t bytes,
+                           const PackageWriteOptions& write, Progress& progress,
+                           SizeChoice* choice = nullptr) const;
+
   protected:
     struct Result {
         Model model;

@@ -13,6 +13,7 @@
 #include "btf/codecs/factor/coded.h"
 #include "btf/codecs/factor/model.h"
 #include "btf/io/function_source.h"
+#include "btf/io/package.h"
 #include "btf/testing/support.h"
 
 namespace btf {
@@ -320,6 +321,41 @@ TEST(Fmf, PackagesAreTheSameBytesForAnyThreadCount) {
         EXPECT_EQ(bytes[0], bytes[1]) << svd;
         EXPECT_EQ(bytes[0], bytes[2]) << svd;
     }
+}
+
+// --target-size: with coded storage the package lands within 5 % under the target; the choice
+// keeps more components or a higher quality for a larger target, and lowers the error; a target
+// below one component's size is refused.
+TEST(Fmf, EncodesToATargetSize) {
+    const FunctionSource source = small_source(32);
+    const auto& codec = dynamic_cast<const factor::FactorCodec&>(fmf_codec());
+    const Params params({{"components", "12"}, {"quantize", "coded"}});
+    // The smallest package (one component at quality 0: the tables and header dominate) and the
+    // whole one at the default quality; targets between them.
+    Package smallest =
+        encode(source, Params({{"components", "1"}, {"quantize", "coded"}, {"quality", "0"}}));
+    Package whole = encode(source, params);
+    const double low = double(encode_package(smallest).size()),
+                 high = double(encode_package(whole).size());
+    double previous_error = INFINITY;
+    for (const uint64_t target :
+         {uint64_t(low + 0.3 * (high - low)), uint64_t(low + 0.8 * (high - low))}) {
+        factor::FactorCodec::SizeChoice choice;
+        Progress quiet;
+        Package p = codec.encode_to_size(source, params, target, {}, quiet, &choice);
+        const std::vector<uint8_t> bytes = encode_package(p);
+        EXPECT_LE(bytes.size(), target);
+        EXPECT_GE(double(bytes.size()), 0.95 * double(target));
+        EXPECT_EQ(choice.bytes, bytes.size());
+        EXPECT_EQ(p.header.at("params").at("quality"), choice.quality);
+        const double e = rmse(source, *fmf_codec().open(p));
+        EXPECT_LT(e, previous_error) << target;
+        previous_error = e;
+    }
+    Progress quiet;
+    const uint64_t tiny = uint64_t(low / 2);
+    EXPECT_EQ(test::error_of([&] { codec.encode_to_size(source, params, tiny, {}, quiet); }),
+              fmt::format("--target-size {}: even one component at quality 0 takes more", tiny));
 }
 
 TEST(Fmf, RejectsBadParameters) {
