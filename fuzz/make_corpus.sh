@@ -52,6 +52,7 @@ compress() {  # compress NAME ARGS...
 compress fmf --codec fmf --components 4
 compress fmf_f32 --codec fmf --components 3 --quantize f32
 compress fmf_raw --codec fmf --components 2 --zstd 0
+compress fmf_coded --codec fmf --components 3 --quantize coded -p quality=30
 compress pca_views --codec pca-views --components 3
 compress lpca --codec lpca --components 3
 compress perceptual --codec perceptual --components 6
@@ -62,6 +63,7 @@ compress mlvq_isotropic --codec mlvq -p n-theta-v=3 -p n-phi-v=1 -p n-alpha=3 -p
 put codec_fmf fmf.btfpkg "$tmp/fmf.btfpkg"
 put codec_fmf fmf_f32.btfpkg "$tmp/fmf_f32.btfpkg"
 put codec_fmf fmf_raw.btfpkg "$tmp/fmf_raw.btfpkg"
+put codec_fmf fmf_coded.btfpkg "$tmp/fmf_coded.btfpkg"
 put codec_pca_views pca_views.btfpkg "$tmp/pca_views.btfpkg"
 put codec_lpca lpca.btfpkg "$tmp/lpca.btfpkg"
 put codec_perceptual perceptual.btfpkg "$tmp/perceptual.btfpkg"

@@ -36,6 +36,11 @@ const Package& encoded(const std::string& codec) {
     if (it != cache.end()) return it->second;
     Params params;
     if (codec == "fmf") params = Params({{"components", "3"}});
+    if (codec == "fmf-coded") {
+        const Package p = find_codec("fmf").encode(
+            leather(), Params({{"components", "3"}, {"quantize", "coded"}}));
+        return cache[codec] = p;
+    }
     if (codec == "mlvq")
         params = Params({{"n-alpha", "7"}, {"n-beta", "7"}, {"n-theta-v", "4"}, {"n-phi-v", "6"}});
     return cache[codec] = find_codec(codec).encode(leather(), params);
@@ -69,6 +74,26 @@ TEST(HostilePackage, TheUneditedPackagesOpen) {
             material->eval({0.3, 0.6}, Direction{0.3, 1.0}.vector(), Direction{0.2, 2.0}.vector());
         EXPECT_TRUE(std::isfinite(v.r) && std::isfinite(v.g) && std::isfinite(v.b)) << codec;
     }
+}
+
+// Coded components (factor/coded.h): damage is refused with the section's name, and codes so
+// large that the decoded factor overflows are refused as not finite.
+TEST(HostilePackage, DamagedCodedComponentsAreRefused) {
+    EXPECT_THAT(open_error("fmf-coded", [](Package& p) { section(p, "b0.k1").data.pop_back(); }),
+                HasSubstr("section 'b0.k1': the coefficients end early"));
+    EXPECT_THAT(open_error("fmf-coded", [](Package& p) { section(p, "b0.k0").data[2] = 1 + 8; }),
+                HasSubstr("section 'b0.k0': unknown texel coding 9"));
+    EXPECT_THAT(open_error("fmf-coded",
+                           [](Package& p) {
+                               // a's first code: the largest 64-bit varint; the step times it
+                               // overflows a float.
+                               auto& d = section(p, "b0.k0").data;
+                               const std::vector<uint8_t> huge = {0xfe, 0xff, 0xff, 0xff, 0xff,
+                                                                  0xff, 0xff, 0xff, 0xff, 0x01};
+                               d.erase(d.begin() + 12);  // the first varint of a is one byte
+                               d.insert(d.begin() + 12, huge.begin(), huge.end());
+                           }),
+                HasSubstr("not a finite number"));
 }
 
 TEST(HostilePackage, NonFiniteFactorsAreRefusedWhenOpened) {
