@@ -164,8 +164,7 @@ Package FactorCodec::encode_to_size(const BtfSource& source, const Params& param
     // The chosen prefix for real; should it not fit after all, one component fewer.
     Candidate chosen = *best;
     for (;;) {
-        const std::vector<int> kept =
-            kept_per_block(order, model.blocks.size(), chosen.sections);
+        const std::vector<int> kept = kept_per_block(order, model.blocks.size(), chosen.sections);
         Package package = package_at(truncated(model, kept), chosen.quality);
         if (package.file_bytes <= bytes || chosen.sections == 1) {
             if (package.file_bytes > bytes)
