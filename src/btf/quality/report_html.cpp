@@ -125,10 +125,14 @@ std::string rate_distortion_svg(const Report& report, RdMeasure measure) {
             if (!c.cielab) continue;
             y = c.cielab->headline().mean;
         }
+        // One line per codec and factor storage: "fmf", "fmf (coded)".
+        std::string name = c.config.codec;
+        for (const auto& [key, value] : c.config.params)
+            if (key == "quantize") name += " (" + value + ")";
         auto it = std::find_if(series.begin(), series.end(),
-                               [&](const PlotSeries& s) { return s.name == c.config.codec; });
+                               [&](const PlotSeries& s) { return s.name == name; });
         if (it == series.end()) {
-            series.push_back({c.config.codec, {}});
+            series.push_back({name, {}});
             it = series.end() - 1;
         }
         it->points.push_back({c.bits_per_sample, y, c.config.parameters_text()});
