@@ -4,41 +4,10 @@
 // texel image written band by band. Decoded as the C++ reader decodes: the inverse DCT in double
 // in the same order, every value rounded to the nearest half float.
 
+import { inverseDct, ZIGZAG } from "./dct8";
 import { floatToHalf, halfToFloat } from "./half";
 
 const FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
-
-// The orthonormal 8-point DCT-II basis: BASIS[k * 8 + n] = c_k cos((2n + 1) k π / 16).
-const BASIS = new Float64Array(64);
-for (let k = 0; k < 8; ++k)
-  for (let n = 0; n < 8; ++n) BASIS[k * 8 + n] = (k === 0 ? Math.sqrt(1 / 8) : Math.sqrt(2 / 8)) * Math.cos(((2 * n + 1) * k * Math.PI) / 16);
-
-/** Zig-zag order of an 8 × 8 block (index = row · 8 + column), as util/dct8.cpp. */
-export const ZIGZAG = (() => {
-  const order = [];
-  for (let s = 0; s < 15; ++s)
-    for (let t = 0; t <= s; ++t) {
-      const r = s % 2 === 0 ? s - t : t, c = s - r;
-      if (r < 8 && c < 8) order.push(r * 8 + c);
-    }
-  return order;
-})();
-
-function inverseDct(input: Float64Array, out: Float64Array): void {
-  const tmp = new Float64Array(64);
-  for (let c = 0; c < 8; ++c)
-    for (let n = 0; n < 8; ++n) {
-      let s = 0;
-      for (let k = 0; k < 8; ++k) s += BASIS[k * 8 + n] * input[k * 8 + c];
-      tmp[n * 8 + c] = s;
-    }
-  for (let r = 0; r < 8; ++r)
-    for (let n = 0; n < 8; ++n) {
-      let s = 0;
-      for (let k = 0; k < 8; ++k) s += BASIS[k * 8 + n] * tmp[r * 8 + k];
-      out[r * 8 + n] = s;
-    }
-}
 
 const asHalf = (v: number): number => halfToFloat(floatToHalf(Math.fround(v)));
 
@@ -83,12 +52,12 @@ function image(v: Varints, width: number, height: number, step: number): Float32
       previous = value;
     }
   }
-  const out = new Float32Array(width * height), coef = new Float64Array(64), px = new Float64Array(64);
+  const out = new Float32Array(width * height), coef = new Float64Array(64), px = new Float64Array(64), tmp = new Float64Array(64);
   for (let by = 0; by < bh; ++by)
     for (let bx = 0; bx < bw; ++bx) {
       const base = (by * bw + bx) * 64;
       for (let k = 0; k < 64; ++k) coef[ZIGZAG[k]] = codes[base + k] * step;
-      inverseDct(coef, px);
+      inverseDct(coef, px, tmp);
       for (let r = 0; r < 8; ++r)
         for (let n = 0; n < 8; ++n) {
           const y = by * 8 + r, x = bx * 8 + n;

@@ -1,0 +1,33 @@
+// The 8 × 8 DCT of btfkit's transform coders (src/btf/util/dct8.cpp): the orthonormal DCT-II
+// basis, the zig-zag order and the inverse transform in double, each sum in the C++ order.
+
+const BASIS = (() => {
+  const m = new Float64Array(64);
+  for (let k = 0; k < 8; ++k) for (let n = 0; n < 8; ++n) m[k * 8 + n] = (k === 0 ? Math.sqrt(1 / 8) : Math.sqrt(2 / 8)) * Math.cos(((2 * n + 1) * k * Math.PI) / 16);
+  return m;
+})();
+
+export const ZIGZAG = (() => {
+  const order: number[] = [];
+  for (let s = 0; s < 15; ++s)
+    for (let t = 0; t <= s; ++t) {
+      const r = s % 2 === 0 ? s - t : t, c = s - r;
+      if (r < 8 && c < 8) order.push(r * 8 + c);
+    }
+  return order;
+})();
+
+export function inverseDct(coef: Float64Array, out: Float64Array, tmp: Float64Array): void {
+  for (let c = 0; c < 8; ++c)
+    for (let n = 0; n < 8; ++n) {
+      let s = 0;
+      for (let k = 0; k < 8; ++k) s += BASIS[k * 8 + n] * coef[k * 8 + c];
+      tmp[n * 8 + c] = s;
+    }
+  for (let r = 0; r < 8; ++r)
+    for (let n = 0; n < 8; ++n) {
+      let s = 0;
+      for (let k = 0; k < 8; ++k) s += BASIS[k * 8 + n] * tmp[r * 8 + k];
+      out[r * 8 + n] = s;
+    }
+}
