@@ -282,6 +282,24 @@ TEST(PcaViews, PackageRoundTrip) {
     const double e32 = squared_error(direct, *source).relative();
     const double e16 = squared_error(*f16, *source).relative();
     EXPECT_NEAR(e16, e32, 0.01 * e32);
+
+    // Coded storage (each group's eigen-textures DCT-coded): through bytes, smaller than f16, and
+    // nearer the unquantized error at a higher quality.
+    double previous = INFINITY;
+    for (const char* quality : {"70", "90"}) {
+        Package coded = codec.encode(*source, Params({{"views-per-group", "2"},
+                                                      {"components", "3"},
+                                                      {"quantize", "coded"},
+                                                      {"quality", quality}}));
+        const std::vector<uint8_t> coded_bytes = encode_package(coded);
+        EXPECT_LT(coded_bytes.size(), encode_package(half).size()) << quality;
+        const auto from_bytes = open_material(decode_package(coded_bytes, "coded"));
+        const double ec = squared_error(*from_bytes, *source).relative();
+        EXPECT_GE(ec, e32 * 0.999) << quality;
+        EXPECT_LT(ec, previous) << quality;
+        previous = ec;
+    }
+    EXPECT_LT(previous, 1.1 * e32);
 }
 
 TEST(PcaViews, DecorrelatedColourSharesComponentsAcrossPlanes) {
