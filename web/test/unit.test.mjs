@@ -242,6 +242,27 @@ test("damaged model sections give one clear error naming the section", () => {
   assert.throws(() => fresh.addComponent(`b${block}.k0`, first.data), /needs section 'angular'/);
 });
 
+test("damaged coded components give the C++ reader's errors, naming the section", () => {
+  const { info, sections } = decode(fx.packages.woven_coded);
+  const k0 = sections.find((s) => s.entry.name === "b0.k0").data;
+  const add = (bytes) => () => new M.FactorModel(info).addComponent("b0.k0", bytes);
+  assert.doesNotThrow(add(k0));
+  assert.throws(add(k0.subarray(0, 5)), /^Error: section 'b0\.k0': 5 bytes, shorter than a coded component's head$/);
+  assert.throws(add(k0.subarray(0, k0.length - 1)), /^Error: section 'b0\.k0': the coefficients end early$/);
+  const longer = new Uint8Array(k0.length + 1);
+  longer.set(k0);
+  assert.throws(add(longer), /^Error: section 'b0\.k0': 1 bytes after the coded factors$/);
+  for (const [at, value, message] of [
+    [0, 9, "unknown coded format 9"],
+    [1, 0, "prediction distance 0"],
+    [2, 7, "unknown texel coding 7"],
+  ]) {
+    const bad = k0.slice();
+    bad[at] = value;
+    assert.throws(add(bad), new RegExp(`^Error: section 'b0\\.k0': ${message}$`));
+  }
+});
+
 test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {
   const { info, tables } = decode(fx.packages.woven_fabric);
   for (let i = 0; i < info.nL; ++i) {
