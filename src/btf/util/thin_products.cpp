@@ -214,22 +214,24 @@ BTF_AVX512 void multiply_add_transposed_own(const float* q, int64_t rows, int64_
     }
 }
 
-bool cpu_has_avx512() {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f");
+}  // namespace
+
+bool own_kernel_supported() {
+    static const bool supported = [] {
+        __builtin_cpu_init();
+        return bool(__builtin_cpu_supports("avx512f"));
+    }();
+    return supported;
 }
 
+namespace {
+
 std::atomic<Kernel>& chosen() {
-    static std::atomic<Kernel> kernel{cpu_has_avx512() ? Kernel::kOwn : Kernel::kBlas};
+    static std::atomic<Kernel> kernel{own_kernel_supported() ? Kernel::kOwn : Kernel::kBlas};
     return kernel;
 }
 
 }  // namespace
-
-bool own_kernel_supported() {
-    static const bool supported = cpu_has_avx512();
-    return supported;
-}
 
 Kernel kernel() {
     return chosen().load(std::memory_order_relaxed);

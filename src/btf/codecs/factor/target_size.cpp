@@ -16,16 +16,10 @@ namespace btf::factor {
 
 namespace {
 
-// The (block, k) of each component section, in the package's order.
-std::vector<std::pair<int, int>> component_order(const Package& package) {
-    std::vector<std::pair<int, int>> out;
-    for (const PackageSection& s : package.sections) {
-        int block = -1, k = -1;
-        char tail = 0;
-        if (std::sscanf(s.name.c_str(), "b%d.k%d%c", &block, &k, &tail) == 2)
-            out.emplace_back(block, k);
-    }
-    return out;
+// The block and k of a component section ("b<block>.k<k>"), or false for another section.
+bool component_of(const PackageSection& s, std::pair<int, int>& id) {
+    char tail = 0;
+    return std::sscanf(s.name.c_str(), "b%d.k%d%c", &id.first, &id.second, &tail) == 2;
 }
 
 // Components per block in the first n sections of `order`.
@@ -99,7 +93,7 @@ Package FactorCodec::encode_to_size(const BtfSource& source, const Params& param
     std::vector<std::pair<int, int>> order;
     auto candidates_at = [&](double quality, std::vector<Candidate>& out) {
         const Package full = package_at(model, quality);
-        if (order.empty()) order = component_order(full);
+        const bool first = order.empty();
         const Model decoded = from_package(full);
         std::vector<std::vector<double>> errors;
         for (size_t i = 0; i < model.blocks.size(); ++i)
@@ -108,11 +102,13 @@ Package FactorCodec::encode_to_size(const BtfSource& source, const Params& param
         // header's energies and section entries grow with the components kept: interpolated).
         std::vector<uint64_t> component_bytes;
         uint64_t rest_full = full.file_bytes;
-        for (const PackageSection& s : full.sections)
-            if (s.name.size() > 1 && s.name[0] == 'b' && s.name.find(".k") != std::string::npos) {
-                component_bytes.push_back(s.stored_size);
-                rest_full -= s.stored_size;
-            }
+        for (const PackageSection& s : full.sections) {
+            std::pair<int, int> id;
+            if (!component_of(s, id)) continue;
+            if (first) order.push_back(id);  // the package's order, the same at every quality
+            component_bytes.push_back(s.stored_size);
+            rest_full -= s.stored_size;
+        }
         const uint64_t rest_none =
             package_at(truncated(model, std::vector<int>(model.blocks.size(), 0)), quality)
                 .file_bytes;
