@@ -21,10 +21,10 @@ namespace {
 
 // Column slice of the transposed products: fixed, so sums do not depend on the thread count.
 constexpr int64_t kColumnSlice = 2048;
-// Row chunk of the direct products: large enough that packing the right-hand factor (cols × l)
-// once per chunk costs little next to the product (128 rows: 1.1× faster than 64 at fmf's
-// shapes, bench/gemm_pass), small enough that a view's batch (nL · 3 rows) still splits over
-// the cores.
+// Row chunk of the direct products: small enough that a view's batch (nL · 3 rows) splits over
+// the cores; for OpenBLAS (CPUs without AVX-512), large enough that packing the right-hand
+// factor (cols × l) once per chunk costs little next to the product (128 rows: 1.1× faster than
+// 64 at fmf's shapes, bench/gemm_pass). btfkit's own kernels give the same bits for any chunk.
 constexpr int64_t kRowChunk = 128;
 // Row chunk of the Gram–Schmidt sums over the thin factors' rows (fixed, for the same reason).
 constexpr int64_t kThinChunk = 4096;
