@@ -5,7 +5,7 @@
 // The decoding follows the C++ operation by operation; the C++ may fuse multiply-adds where the
 // build allows, so a decoded value can differ from the C++ one in its last half-float bit.
 
-import { inverseDct, ZIGZAG } from "./dct8";
+import { inverseDct, Varints, ZIGZAG } from "./dct8";
 import { halfToFloat, floatToHalf } from "./half";
 import { TileLayout, type Group, type TileId } from "./cache";
 
@@ -151,24 +151,12 @@ export async function decodeTile(payload: Uint8Array, prediction: Float32Array |
   }
   if (!(step > 0) || !Number.isFinite(step)) throw new Error("tile: the quantization step is invalid");
   const S = layout.stride, blocks = S / 8;
-  let p = 0;
-  const varint = (): number => {
-    // zig-zag-signed LEB128; coefficients of real tiles stay far below 2^53
-    let z = 0, scale = 1;
-    for (let shift = 0; shift < 64; shift += 7) {
-      if (p >= raw.length) throw new Error("tile: the coefficients end early");
-      const b = raw[p++];
-      z += (b & 0x7f) * scale;
-      scale *= 128;
-      if (!(b & 0x80)) return z % 2 === 0 ? z / 2 : -(z + 1) / 2;
-    }
-    throw new Error("tile: a coefficient is longer than 64 bits");
-  };
+  const codes = new Varints(raw, 0, "tile");
   const coef = new Float64Array(64), block = new Float64Array(64), tmp = new Float64Array(64);
   for (let c = 0; c < 4; ++c)
     for (let by = 0; by < blocks; ++by)
       for (let bx = 0; bx < blocks; ++bx) {
-        for (let k = 0; k < 64; ++k) coef[ZIGZAG[k]] = varint() * step;
+        for (let k = 0; k < 64; ++k) coef[ZIGZAG[k]] = codes.next() * step;
         inverseDct(coef, block, tmp);
         for (let r = 0; r < 8; ++r)
           for (let n = 0; n < 8; ++n) {
@@ -176,6 +164,6 @@ export async function decodeTile(payload: Uint8Array, prediction: Float32Array |
             out[i] = floatToHalf(Math.fround(block[r * 8 + n] + (prediction ? prediction[i] : 0)));
           }
       }
-  if (p !== raw.length) throw new Error("tile: bytes after the coefficients");
+  if (codes.at !== raw.length) throw new Error("tile: bytes after the coefficients");
   return out;
 }

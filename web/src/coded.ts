@@ -4,32 +4,12 @@
 // texel image written band by band. Decoded as the C++ reader decodes: the inverse DCT in double
 // in the same order, every value rounded to the nearest half float.
 
-import { inverseDct, ZIGZAG } from "./dct8";
+import { inverseDct, Varints, ZIGZAG } from "./dct8";
 import { floatToHalf, halfToFloat } from "./half";
 
 const FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
 
 const asHalf = (v: number): number => halfToFloat(floatToHalf(Math.fround(v)));
-
-/** Reads zig-zag-signed LEB128 varints; codes beyond ±2⁵³ are refused (the C++ encoder never writes more than ±2³¹). */
-class Varints {
-  constructor(
-    private readonly data: Uint8Array,
-    public at: number,
-    private readonly what: string,
-  ) {}
-  next(): number {
-    let z = 0, scale = 1;
-    for (let i = 0; i < 8; ++i) {
-      if (this.at >= this.data.length) throw new Error(`${this.what}: the coefficients end early`);
-      const b = this.data[this.at++];
-      z += (b & 0x7f) * scale;
-      if (!(b & 0x80)) return z % 2 === 1 ? -(z + 1) / 2 : z / 2;
-      scale *= 128;
-    }
-    throw new Error(`${this.what}: a coefficient is too large`);
-  }
-}
 
 function plain(v: Varints, n: number, step: number, stride: number): Float32Array {
   const codes = new Float64Array(n), out = new Float32Array(n);

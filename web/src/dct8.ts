@@ -1,5 +1,6 @@
 // The 8 × 8 DCT of btfkit's transform coders (src/btf/util/dct8.cpp): the orthonormal DCT-II
-// basis, the zig-zag order and the inverse transform in double, each sum in the C++ order.
+// basis, the zig-zag order and the inverse transform in double, each sum in the C++ order, and
+// the zig-zag-signed LEB128 varints of the coefficients.
 
 const BASIS = (() => {
   const m = new Float64Array(64);
@@ -30,4 +31,24 @@ export function inverseDct(coef: Float64Array, out: Float64Array, tmp: Float64Ar
       for (let k = 0; k < 8; ++k) s += BASIS[k * 8 + n] * tmp[r * 8 + k];
       out[r * 8 + n] = s;
     }
+}
+
+/** Reads zig-zag-signed LEB128 varints from `at` (dct8::get_varint); real coefficients stay far below 2⁵³. */
+export class Varints {
+  constructor(
+    private readonly data: Uint8Array,
+    public at: number,
+    private readonly what: string,
+  ) {}
+  next(): number {
+    let z = 0, scale = 1;
+    for (let shift = 0; shift < 64; shift += 7) {
+      if (this.at >= this.data.length) throw new Error(`${this.what}: the coefficients end early`);
+      const b = this.data[this.at++];
+      z += (b & 0x7f) * scale;
+      scale *= 128;
+      if (!(b & 0x80)) return z % 2 === 0 ? z / 2 : -(z + 1) / 2;
+    }
+    throw new Error(`${this.what}: a coefficient is longer than 64 bits`);
+  }
 }
