@@ -24,7 +24,7 @@ run() {  # label bq max-level max-angular-level
   local start end
   start=$(date +%s.%N)
   "$btf" --quiet compress "$ref" -o "$work/p.btfpkg" --codec perceptual --components "$components" \
-    -p quality="$2" -p max-level="$3" -p max-angular-level="$4" --no-error >/dev/null
+    -p base-quality="$2" -p max-level="$3" -p max-angular-level="$4" --no-error >/dev/null
   end=$(date +%s.%N)
   read -r rmse cie <<<"$(measure "$ref" "$work/p.btfpkg")"
   local b

@@ -64,18 +64,18 @@ export const PACKAGES = {
   // lpca: decorrelated colour, f32
   woven_lpca_dec: ["--codec", "lpca", "--components", "2", "-p", "clusters=3", "-p", "colour=decorrelated", "--quantize", "f32"],
   // perceptual: CIELab planes with spatial and angular levels (high-frequency omission), f16
-  woven_perceptual: ["--codec", "perceptual", "--components", "10", "-p", "quality=0.6"],
+  woven_perceptual: ["--codec", "perceptual", "--components", "10", "-p", "base-quality=0.6"],
   // perceptual: one level, row means, u8
   woven_perceptual_u8: ["--codec", "perceptual", "--components", "6", "-p", "mean=true", "--quantize", "u8"],
   // the third quantization of each factor codec (CPU reference only)
   woven_pca_f32: ["--codec", "pca-views", "--components", "2", "-p", "views-per-group=27", "--quantize", "f32"],
   woven_lpca_u8: ["--codec", "lpca", "--components", "2", "-p", "clusters=2", "-p", "log=true", "--quantize", "u8"],
-  woven_perceptual_f32: ["--codec", "perceptual", "--components", "6", "-p", "quality=0.5", "--quantize", "f32"],
+  woven_perceptual_f32: ["--codec", "perceptual", "--components", "6", "-p", "base-quality=0.5", "--quantize", "f32"],
   // coded storage (DCT-coded eigen-textures): fmf; lpca (cluster-scattered texels, coded plain);
   // perceptual (coarse grids and angular levels)
   woven_coded: ["--codec", "fmf", "--components", "8", "--quantize", "coded", "-p", "quality=40"],
   woven_lpca_coded: ["--codec", "lpca", "--components", "3", "-p", "clusters=4", "--quantize", "coded"],
-  woven_perceptual_coded: ["--codec", "perceptual", "--components", "10", "-p", "quality=0.6", "--quantize", "coded"],
+  woven_perceptual_coded: ["--codec", "perceptual", "--components", "10", "-p", "base-quality=0.6", "--quantize", "coded", "-p", "quality=40"],
   // mlvq: LogLuv colour (the default for btf synth's HDR source), P6 in 4 levels
   woven_mlvq: ["--codec", "mlvq"],
   // mlvq: YCbCr colour

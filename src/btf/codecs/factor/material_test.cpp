@@ -124,7 +124,7 @@ const std::vector<Case>& cases() {
         c.push_back(
             {"perceptual levels f16",
              encoded(perceptual_codec(),
-                     Params({{"components", "14"}, {"quality", "0.6"}, {"mean", "true"}}))});
+                     Params({{"components", "14"}, {"base-quality", "0.6"}, {"mean", "true"}}))});
         c.push_back({"perceptual one level f16",
                      encoded(perceptual_codec(), Params({{"components", "10"}})), true});
         c.push_back({"fmf rgb f16, views = lights",

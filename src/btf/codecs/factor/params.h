@@ -5,6 +5,8 @@
 /// each codec's own default (power-iterations=2 for pca-views and lpca, 3 for fmf and perceptual)
 /// is its Options initializer, as for every parameter (codecs/param_schema.h).
 
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "btf/codecs/factor/model.h"
@@ -63,12 +65,22 @@ void declare_storage_and_svd(ParamSchema<Options>& schema) {
         .integer("seed", &Options::seed, 0, 1 << 30, "random seed of the randomized SVD");
 }
 
-/// quality=… of coded storage (Options::coding_quality).
+/// quality=… of coded storage (Options::coding_quality), after declare_storage_and_svd. A
+/// quality other than the default without quantize=coded is refused rather than ignored (it
+/// would be a mistake, or perceptual's omission quality under its old name, now base-quality).
+/// `hint` ends that error (perceptual: where the old meaning went).
 template <class Options>
-void declare_coding(ParamSchema<Options>& schema) {
+void declare_coding(ParamSchema<Options>& schema, std::string hint = "") {
     schema.number("quality", &Options::coding_quality, 0, 100,
                   "quantize=coded: 0 to 100, each 10 more halving the quantization step (the "
                   "step is 2^(-quality/10) of the values' RMS)");
+    schema.then([hint = std::move(hint)](Options& o) {
+        if (o.quantization != Quantization::kCoded && o.coding_quality != kDefaultCodingQuality)
+            fail(
+                "parameter quality: it sets the quantization step of quantize=coded, and "
+                "quantize is {}{}",
+                to_string(o.quantization), hint);
+    });
 }
 
 /// The randomized SVD's settings from a codec's options: rank and centring from the caller.

@@ -90,7 +90,7 @@ const ParamSchema<Options>& schema() {
             .flag("csf", &Options::csf,
                   "weight by the CSF filters; false: plain factorization of the CIELab planes "
                   "(baseline)")
-            .number("quality", &Options::quality, 0, 1,
+            .number("base-quality", &Options::quality, 0, 1,
                     "base quality bq of high-frequency omission: 1 keeps every eigen-texture at "
                     "full resolution, lower values store more of them at reduced resolution")
             .integer("max-level", &Options::max_level, 0, 8,
@@ -99,6 +99,9 @@ const ParamSchema<Options>& schema() {
                      "coarsest eigen-ABRDF resolution omission may choose: 1/2^level of the views "
                      "and of the lights");
         factor::declare_storage_and_svd(s);
+        factor::declare_coding(s,
+                               "; the base quality bq of high-frequency omission is "
+                               "parameter base-quality");
         return s;
     }();
     return schema;
@@ -382,6 +385,7 @@ class PerceptualCodec final : public factor::FactorCodec {
         result.model = perceptual::factorize(source, o, progress);
         result.params = perceptual::schema().to_json(o);
         result.quantization = o.quantization;
+        result.quality = o.coding_quality;
         return result;
     }
 };

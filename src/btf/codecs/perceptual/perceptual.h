@@ -21,8 +21,9 @@ struct Options {
     /// baseline of the same colour space and allocation).
     bool csf = true;
     bool subtract_mean = false;  ///< centre each angular sample on its mean over the texels
-    /// High-frequency omission (§5.3): base quality bq in [0, 1]; 1 keeps every eigen-texture at
-    /// full resolution, lower values trade perceptual quality for size per component.
+    /// High-frequency omission (§5.3): base quality bq in [0, 1] (parameter base-quality); 1
+    /// keeps every eigen-texture at full resolution, lower values trade perceptual quality for
+    /// size per component.
     double quality = 1;
     /// Coarsest eigen-texture level omission may choose: 1/2^max_level of the extent per axis
     /// (only levels that divide width and height are considered).
@@ -36,6 +37,7 @@ struct Options {
     int power_iterations = 3;
     uint64_t seed = 1;
     factor::Quantization quantization = factor::Quantization::kF16;
+    double coding_quality = factor::kDefaultCodingQuality;  ///< quantize=coded
 };
 
 /// Reads the options from codec parameters (the registry's params()); checks ranges and reports

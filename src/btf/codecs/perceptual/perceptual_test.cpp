@@ -305,7 +305,7 @@ TEST(Perceptual, PrefixesAddComponentsInDecreasingPerceptualEnergy) {
 TEST(Perceptual, IsDeterministicForAnyThreadCount) {
     const BtfSource& source = fabric();
     for (const std::string quality : {"1", "0.6"}) {  // without and with omission
-        const Params params({{"components", "7"}, {"mean", "true"}, {"quality", quality}});
+        const Params params({{"components", "7"}, {"mean", "true"}, {"base-quality", quality}});
         const auto bytes = test::bytes_per_thread_count([&] {
             Package p = encode(source, params);
             return encode_package(p);
@@ -321,12 +321,19 @@ TEST(Perceptual, RejectsBadParameters) {
                   encode(source, Params({{"sped", "3"}}));
               }),
               "codec perceptual: unknown parameter 'sped' (known: components, resolution, speed, "
-              "mean, csf, quality, max-level, max-angular-level, quantize, svd, oversampling, "
-              "power-iterations, block, seed)");
+              "mean, csf, base-quality, max-level, max-angular-level, quantize, svd, "
+              "oversampling, power-iterations, block, seed, quality)");
     EXPECT_EQ(test::error_of([&] {
-                  encode(source, Params({{"quality", "1.5"}}));
+                  encode(source, Params({{"base-quality", "1.5"}}));
               }),
-              "parameter quality: 1.5 is outside [0, 1]");
+              "parameter base-quality: 1.5 is outside [0, 1]");
+    // The omission's quality under its old name sets coded storage's quality instead: refused
+    // without coded storage rather than silently ignored.
+    EXPECT_EQ(test::error_of([&] {
+                  encode(source, Params({{"quality", "0.5"}}));
+              }),
+              "parameter quality: it sets the quantization step of quantize=coded, and quantize "
+              "is f16; the base quality bq of high-frequency omission is parameter base-quality");
     EXPECT_EQ(test::error_of([&] {
                   encode(source, Params({{"max-level", "9"}}));
               }),
@@ -395,17 +402,18 @@ perceptual::OmissionReport report_of(const BtfSource& source, const Params& para
 TEST(PerceptualOmission, QualityOneKeepsEveryEigenTextureAtFullResolution) {
     const BtfSource& source = fabric();
     Package plain = encode(source, Params({{"components", "10"}}));
-    Package one = encode(source, Params({{"components", "10"}, {"quality", "1"}}));
+    Package one = encode(source, Params({{"components", "10"}, {"base-quality", "1"}}));
     EXPECT_EQ(encode_package(plain), encode_package(one));
     EXPECT_FALSE(one.header.at("model").contains("levels"));
     factor::Model model;
-    const auto report = report_of(source, Params({{"components", "10"}, {"quality", "1"}}), &model);
+    const auto report =
+        report_of(source, Params({{"components", "10"}, {"base-quality", "1"}}), &model);
     EXPECT_EQ(model.levels, 1);
     ASSERT_EQ(report.components.size(), 10u);
     for (const auto& c : report.components) EXPECT_EQ(c.level, 0);
     // max-level=0 allows no omission at any quality.
-    const auto none =
-        report_of(source, Params({{"components", "10"}, {"quality", "0"}, {"max-level", "0"}}));
+    const auto none = report_of(
+        source, Params({{"components", "10"}, {"base-quality", "0"}, {"max-level", "0"}}));
     for (const auto& c : none.components) EXPECT_EQ(c.level, 0);
 }
 
@@ -423,7 +431,8 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
     size_t previous = SIZE_MAX, full = 0, full_file = 0, file = 0;
     int previous_levels = 0;
     for (const std::string q : {"1", "0.97", "0.9", "0.7", "0.4", "0"}) {
-        const Params params({{"components", "12"}, {"quality", q}, {"max-angular-level", "0"}});
+        const Params params(
+            {{"components", "12"}, {"base-quality", q}, {"max-angular-level", "0"}});
         Package p = encode(source, params);
         const size_t bytes = factor_bytes(p);
         file = encode_package(p).size();
@@ -445,11 +454,11 @@ TEST(PerceptualOmission, LowerQualityMakesSmallerPackages) {
     EXPECT_LT(file, full_file);
     // bq = 0 weighs size alone: every eigen-texture at the coarsest level (16² → 2²).
     const auto zero = report_of(
-        source, Params({{"components", "12"}, {"quality", "0"}, {"max-angular-level", "0"}}));
+        source, Params({{"components", "12"}, {"base-quality", "0"}, {"max-angular-level", "0"}}));
     for (const auto& c : zero.components) EXPECT_EQ(c.level, 3);
     // Levels must divide the extent: 12² texels allow ×1/2 and ×1/4, not ×1/8.
     const auto twelve = test::cached(*synth::make("leather", 12, test::ubo_subset(3, 4), 1));
-    const auto report = report_of(*twelve, Params({{"components", "4"}, {"quality", "0"}}));
+    const auto report = report_of(*twelve, Params({{"components", "4"}, {"base-quality", "0"}}));
     for (const auto& c : report.components) EXPECT_EQ(c.level, 2);
 }
 
@@ -465,7 +474,7 @@ TEST(PerceptualOmission, AngularLevelsShrinkTheEigenAbrdfs) {
     size_t previous = SIZE_MAX;
     int previous_angular = 0;
     for (const std::string q : {"1", "0.97", "0.9", "0.7", "0.4", "0"}) {
-        const Params params({{"components", "12"}, {"quality", q}, {"max-level", "0"}});
+        const Params params({{"components", "12"}, {"base-quality", q}, {"max-level", "0"}});
         Package p = encode(source, params);
         EXPECT_LE(factor_bytes(p), previous) << q;
         previous = factor_bytes(p);
@@ -482,7 +491,7 @@ TEST(PerceptualOmission, AngularLevelsShrinkTheEigenAbrdfs) {
     // At bq = 0 every eigen-ABRDF has 4 · 5 values (of 80).
     EXPECT_EQ(previous, 12u * (20 + 256) * 2);
     // Both kinds together: the coarsest of each.
-    Package both = encode(source, Params({{"components", "12"}, {"quality", "0"}}));
+    Package both = encode(source, Params({{"components", "12"}, {"base-quality", "0"}}));
     EXPECT_EQ(factor_bytes(both), 12u * (20 + 4) * 2);
     const nlohmann::json& model = both.header.at("model");
     ASSERT_EQ(model.at("angular_levels").size(), 1u);
@@ -508,7 +517,7 @@ TEST(PerceptualOmission, AddsThePerceptualErrorItPredicts) {
     for (const Mode mode : {Mode{"3", "0", 1e-3}, Mode{"0", "2", 1e-3}, Mode{"3", "2", 0.02}})
         for (const std::string q : {"0.9", "0.5"}) {
             Params reduced = full;
-            reduced.set("quality", q);
+            reduced.set("base-quality", q);
             reduced.set("max-level", mode.max_level);
             reduced.set("max-angular-level", mode.max_angular);
             const auto report = report_of(source, reduced);
@@ -561,7 +570,7 @@ std::vector<double> full_abrdf(const factor::Model& model, const factor::Block& 
 TEST(PerceptualOmission, EvaluatorMatchesAReferenceReconstruction) {
     const BtfSource& source = fabric();
     Package package =
-        encode(source, Params({{"components", "14"}, {"quality", "0.6"}, {"mean", "true"}}));
+        encode(source, Params({{"components", "14"}, {"base-quality", "0.6"}, {"mean", "true"}}));
     const auto material = open_material(decode_package(encode_package(package), "memory"));
     const auto& fm = dynamic_cast<const FactorMaterial&>(*material);
     const factor::Model& model = fm.model();
@@ -633,8 +642,8 @@ TEST(PerceptualOmission, EvaluatorMatchesAReferenceReconstruction) {
 
 TEST(PerceptualOmission, PrefixesOfAMultiLevelPackageOpen) {
     const BtfSource& source = fabric();
-    const Package full =
-        encode(source, Params({{"components", "10"}, {"quality", "0.7"}, {"quantize", "f32"}}));
+    const Package full = encode(
+        source, Params({{"components", "10"}, {"base-quality", "0.7"}, {"quantize", "f32"}}));
     // Sections: tables, angular (the up-sampling of the angular levels), means, components.
     ASSERT_EQ(full.sections[1].name, "angular");
     ASSERT_EQ(full.sections[2].name, "means");
@@ -650,7 +659,7 @@ TEST(PerceptualOmission, PrefixesOfAMultiLevelPackageOpen) {
 }
 
 TEST(PerceptualOmission, TheAngularSectionIsTheUpSamplingOfTheHeadersLevels) {
-    const Package full = encode(fabric(), Params({{"components", "6"}, {"quality", "0.7"}}));
+    const Package full = encode(fabric(), Params({{"components", "6"}, {"base-quality", "0.7"}}));
     const factor::Model model = factor::from_package(full);
     ASSERT_FALSE(model.angular_levels.empty());
     const PackageSection* angular = full.find("angular");
@@ -697,8 +706,8 @@ TEST(PerceptualOmission, TheAngularSectionIsTheUpSamplingOfTheHeadersLevels) {
 
 TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
     factor::Model model = perceptual::factorize(
-        fabric(), perceptual::parse_options(
-                      Params({{"components", "6"}, {"quality", "0"}, {"max-angular-level", "0"}})));
+        fabric(), perceptual::parse_options(Params(
+                      {{"components", "6"}, {"base-quality", "0"}, {"max-angular-level", "0"}})));
     ASSERT_EQ(model.levels, 4);
     factor::Model odd = model;
     odd.width = 12;  // not divisible by 8
@@ -709,7 +718,7 @@ TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
     clustered.texel_cluster.assign(16 * 16, 0);
     EXPECT_EQ(test::error_of([&] { clustered.validate("test"); }),
               "test: 4 spatial levels with 2 texel clusters (levels need one cluster)");
-    Package p = encode(fabric(), Params({{"components", "6"}, {"quality", "0"}}));
+    Package p = encode(fabric(), Params({{"components", "6"}, {"base-quality", "0"}}));
     Package spatial = p;
     spatial.header["model"]["levels"] = 5;
     EXPECT_EQ(test::error_of([&] { perceptual_codec().open(spatial); }),
@@ -730,7 +739,7 @@ TEST(PerceptualOmission, TheModelRejectsLevelsItCannotHold) {
     EXPECT_EQ(test::error_of([&] { perceptual_codec().open(bad); }),
               "package (perceptual): 0 angular levels");
     factor::Model grouped = perceptual::factorize(
-        fabric(), perceptual::parse_options(Params({{"components", "6"}, {"quality", "0"}})));
+        fabric(), perceptual::parse_options(Params({{"components", "6"}, {"base-quality", "0"}})));
     ASSERT_EQ(grouped.angular_levels.size(), 1u);
     std::swap(grouped.groups[0][0], grouped.groups[0][1]);
     EXPECT_EQ(test::error_of([&] { grouped.validate("test"); }),
