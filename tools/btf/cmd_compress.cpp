@@ -162,11 +162,12 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
             std::printf("%s\n", line.c_str());
             if (target > 0)
                 std::printf(
-                    "  target %s: %d of %d components%s, %.1f %% of the target\n",
+                    "  target %s: %d of %d components%s, %.1f %% of the target, mean ΔE00 %.3f on "
+                    "the sample it was chosen on\n",
                     human_bytes(double(target)).c_str(), choice.components, choice.factorized,
                     choice.quality >= 0 ? fmt::format(" at quality {:g}", choice.quality).c_str()
                                         : "",
-                    100.0 * double(choice.bytes) / double(target));
+                    100.0 * double(choice.bytes) / double(target), choice.de2000);
             if (sources.size() > 1)
                 for (size_t k = 0; k < sources.size(); ++k)
                     if (rmse[k])

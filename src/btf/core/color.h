@@ -75,4 +75,7 @@ inline float luminance(const Rgb& c) {
     return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b;
 }
 
+/// CIEDE2000 colour difference (CIE 142-2001, as in Sharma, Wu, Dalal 2005), kL = kC = kH = 1.
+double ciede2000(const Lab& a, const Lab& b);
+
 }  // namespace btf

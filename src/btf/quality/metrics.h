@@ -31,8 +31,8 @@ class BtfSource;
 
 namespace btf::quality {
 
-/// CIEDE2000 colour difference (CIE 142-2001, as in Sharma, Wu, Dalal 2005), kL = kC = kH = 1.
-double ciede2000(const Lab& a, const Lab& b);
+/// CIEDE2000 of two colours (core/color.h; the batched float version is batch_colour.h's).
+using btf::ciede2000;
 
 /// Constants of the SSIM index (Wang, Bovik, Sheikh, Simoncelli 2004).
 struct SsimParams {

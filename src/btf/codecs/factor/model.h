@@ -279,18 +279,19 @@ class FactorCodec : public Codec {
 
     /// What encode_to_size() chose.
     struct SizeChoice {
-        int components = 0;      ///< kept, of the factorization's
-        int factorized = 0;      ///< components the factorization made
-        double quality = -1;     ///< coded storage's quality (−1: another storage)
-        uint64_t bytes = 0;      ///< the package file's size
-        double model_error = 0;  ///< ‖M_C − M̂‖_F, the kept model against the unquantized one
+        int components = 0;   ///< kept, of the factorization's
+        int factorized = 0;   ///< components the factorization made
+        double quality = -1;  ///< coded storage's quality (−1: another storage)
+        uint64_t bytes = 0;   ///< the package file's size
+        /// Mean CIEDE2000 of the package against the source on the sample the choice is made on
+        /// (64 images spread over the (view, light) pairs, 2048 texels of each).
+        double de2000 = 0;
     };
     /// encode() to a package file of at most `bytes` (as write_package writes it with `write`),
-    /// at the lowest error found: factorizes once with `params`, then chooses how many components
-    /// to keep (the first ones in the package's order) and, with quantize=coded, the quality,
-    /// by the error each choice leaves against the unquantized model (Gram matrices of the
-    /// factors) and the bytes it takes. Throws btf::Error when even one component at quality 0
-    /// does not fit.
+    /// at the lowest error found: factorizes once with `params`, then chooses, with
+    /// quantize=coded, the quality (for each, the most components that fit: the first ones in
+    /// the package's order) by the mean CIEDE2000 of the decoded choice on a fixed sample of the
+    /// source. Throws btf::Error when even one component at quality 0 does not fit.
     Package encode_to_size(const BtfSource& source, const Params& params, uint64_t bytes,
                            const PackageWriteOptions& write, Progress& progress,
                            SizeChoice* choice = nullptr) const;

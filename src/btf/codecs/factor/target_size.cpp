@@ -1,5 +1,9 @@
 // FactorCodec::encode_to_size: a factorization package of at most a given size at the lowest
-// error found (btf compress --target-size).
+// error found (btf compress --target-size), the error being the eye's: the mean CIEDE2000 over a
+// fixed sample of the source's values. An error in the factors' own domain (the Frobenius norm
+// the factorization minimizes) chose badly: it rates noise spread thinly over every sample, as
+// coarse quantization leaves, like a few large errors of the same energy, as truncation leaves,
+// where the eye (and a mean of CIEDE2000) sees the spread noise first.
 
 #include <fmt/format.h>
 
@@ -7,7 +11,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <vector>
+
+#include "btf/core/color.h"
+#include "btf/core/image.h"
 
 #include "btf/codecs/factor/model.h"
 #include "btf/util/error.h"
@@ -42,35 +50,59 @@ Model truncated(const Model& model, const std::vector<int>& kept) {
     return out;
 }
 
-// ‖Σ_k a_k b_kᵀ − Σ_{j<m} â_j b̂_jᵀ‖² of one block for every m, from the Gram matrices of the
-// factors (in double): tr(AᵀA BᵀB) − 2 Σ_{j<m} Σ_k (AᵀÂ)_kj (BᵀB̂)_kj
-// + Σ_{j,l<m} (ÂᵀÂ)_jl (B̂ᵀB̂)_jl.
-std::vector<double> prefix_errors(const Block& exact, const Block& decoded) {
-    const Eigen::MatrixXd a = exact.a.cast<double>(), b = exact.b.cast<double>();
-    const Eigen::MatrixXd ah = decoded.a.cast<double>(), bh = decoded.b.cast<double>();
-    const Eigen::MatrixXd g1 = a.transpose() * ah, h1 = b.transpose() * bh;
-    const Eigen::MatrixXd g2 = ah.transpose() * ah, h2 = bh.transpose() * bh;
-    const double total = ((a.transpose() * a) * (b.transpose() * b)).trace();
-    const int n = int(ah.cols());
-    std::vector<double> out(size_t(n) + 1);
-    double e = total;
-    out[0] = e;
-    for (int m = 1; m <= n; ++m) {
-        const int j = m - 1;
-        e -= 2 * g1.col(j).dot(h1.col(j));
-        double cross = g2(j, j) * h2(j, j);
-        for (int l = 0; l < j; ++l) cross += 2 * g2(j, l) * h2(j, l);
-        e += cross;
-        out[size_t(m)] = e;
+// The sample a choice is judged on: kSampleImages images spread evenly over the (view, light)
+// pairs, kSampleTexels texels of each drawn with a fixed seed (every texel when there are fewer),
+// and the source's values there as CIELab.
+constexpr int64_t kSampleImages = 1024;
+constexpr int64_t kSampleTexels = 128;
+
+struct EyeSample {
+    std::vector<SampleIndex> at;
+    std::vector<Lab> lab;
+};
+
+EyeSample eye_sample(const BtfSource& source) {
+    const int w = source.width(), h = source.height();
+    const int64_t texels = int64_t(w) * h;
+    const Sampling& sampling = source.sampling();
+    const int64_t images = sampling.num_images(), nl = sampling.num_lights();
+    const int64_t count = std::min(images, kSampleImages);
+    std::mt19937_64 rng(1);
+    EyeSample s;
+    Image image;
+    for (int64_t j = 0; j < count; ++j) {
+        const int64_t i = (2 * j + 1) * images / (2 * count);
+        const int view = int(i / nl), light = int(i % nl);
+        source.read_image(view, light, image);
+        check(image.width() == w && image.height() == h && image.channels() == 3,
+              "{}: image (view {}, light {}) is {}×{}×{}, expected {}×{}×3", source_name(source),
+              view, light, image.width(), image.height(), image.channels(), w, h);
+        for (int64_t k = 0; k < std::min(texels, kSampleTexels); ++k) {
+            const int64_t t = texels <= kSampleTexels ? k : int64_t(rng() % uint64_t(texels));
+            const float* v = image.data() + 3 * t;
+            s.at.push_back({int(t % w), int(t / w), view, light});
+            s.lab.push_back(rgb_to_lab(Rgb{v[0], v[1], v[2]}));
+        }
     }
-    return out;
+    return s;
+}
+
+// Mean CIEDE2000 of `model` against the sample.
+double mean_de2000(const Model& model, const EyeSample& sample) {
+    const FactorMaterial material(model);
+    std::vector<Rgb> values(sample.at.size());
+    material.eval_sample_batch(sample.at, values);
+    double sum = 0;
+    for (size_t i = 0; i < values.size(); ++i)
+        sum += ciede2000(sample.lab[i], rgb_to_lab(values[i]));
+    return values.empty() ? 0 : sum / double(values.size());
 }
 
 struct Candidate {
     double quality;
     size_t sections;  // component sections kept
     uint64_t bytes;   // estimated (from the full package's section sizes)
-    double error;     // squared
+    double de2000;    // mean CIEDE2000 on the sample
 };
 
 }  // namespace
@@ -89,15 +121,15 @@ Package FactorCodec::encode_to_size(const BtfSource& source, const Params& param
         return package;
     };
 
-    // For one quality: every prefix's estimated size and error.
+    // For one quality: the longest prefix whose estimated size fits, judged on the sample (more
+    // components at one quality leave less error: the coder stores as zeros a component whose
+    // quantized form would not).
+    const EyeSample sample = eye_sample(source);
     std::vector<std::pair<int, int>> order;
-    auto candidates_at = [&](double quality, std::vector<Candidate>& out) {
+    std::vector<Candidate> all;
+    auto candidate_at = [&](double quality) {
         const Package full = package_at(model, quality);
         const bool first = order.empty();
-        const Model decoded = from_package(full);
-        std::vector<std::vector<double>> errors;
-        for (size_t i = 0; i < model.blocks.size(); ++i)
-            errors.push_back(prefix_errors(model.blocks[i], decoded.blocks[i]));
         // Bytes without the component sections, with all of them (full) and with none (the
         // header's energies and section entries grow with the components kept: interpolated).
         std::vector<uint64_t> component_bytes;
@@ -113,69 +145,76 @@ Package FactorCodec::encode_to_size(const BtfSource& source, const Params& param
             package_at(truncated(model, std::vector<int>(model.blocks.size(), 0)), quality)
                 .file_bytes;
         const size_t total = component_bytes.size();
+        Candidate c{quality, 0, rest_none, 0};
         uint64_t sections = 0;
-        std::vector<int> kept(model.blocks.size(), 0);
-        for (size_t n = 0; n <= order.size(); ++n) {
-            if (n > 0) {
-                sections += component_bytes[n - 1];
-                ++kept[size_t(order[n - 1].first)];
-            }
+        for (size_t n = 1; n <= total; ++n) {
+            sections += component_bytes[n - 1];
             const uint64_t size =
                 sections + rest_none +
                 uint64_t(std::ceil(double(rest_full - std::min(rest_full, rest_none)) * double(n) /
-                                   double(std::max<size_t>(total, 1))));
-            double error = 0;
-            for (size_t i = 0; i < kept.size(); ++i) error += errors[i][size_t(kept[i])];
-            if (n > 0) out.push_back({quality, n, size, error});
+                                   double(total)));
+            if (size > bytes) break;
+            c.sections = n;
+            c.bytes = size;
         }
+        if (c.sections == 0) return;
+        c.de2000 = mean_de2000(
+            truncated(from_package(full), kept_per_block(order, model.blocks.size(), c.sections)),
+            sample);
+        all.push_back(c);
     };
-    std::vector<Candidate> all;
-    auto best_fitting = [&](uint64_t limit) {
-        const Candidate* best = nullptr;
+    auto best = [&]() -> const Candidate* {
+        const Candidate* out = nullptr;
         for (const Candidate& c : all)
-            if (c.bytes <= limit && (!best || c.error < best->error)) best = &c;
-        return best;
+            if (!out || c.de2000 < out->de2000) out = &c;
+        return out;
     };
-    // Qualities: a coarse grid, then finer steps around the best that fits (coded storage);
-    // other storages have one "quality".
-    const uint64_t limit = bytes;
+    // Qualities: a coarse grid, then finer steps around the best (coded storage); other storages
+    // have one "quality".
     if (coded) {
-        for (double q = 0; q <= 100; q += 10) candidates_at(q, all);
+        for (double q = 0; q <= 100; q += 10) candidate_at(q);
         for (const double step : {2.0, 0.5}) {
-            const Candidate* best = best_fitting(limit);
-            if (!best) break;
-            const double centre = best->quality;
+            if (!best()) break;
+            const double centre = best()->quality;
             for (int i = -4; i <= 4; ++i) {
                 const double q = centre + i * step;
-                if (i != 0 && q >= 0 && q <= 100) candidates_at(q, all);
+                if (i != 0 && q >= 0 && q <= 100) candidate_at(q);
             }
         }
     } else {
-        candidates_at(kDefaultCodingQuality, all);
+        candidate_at(kDefaultCodingQuality);
     }
-    const Candidate* best = best_fitting(limit);
-    if (!best)
+    if (!best())
         fail("--target-size {}: even one component{} takes more", bytes,
              coded ? " at quality 0" : fmt::format(" in {}", to_string(result.quantization)));
-    // The chosen prefix for real; should it not fit after all, one component fewer.
-    Candidate chosen = *best;
+    // The best choice for real. The estimate can be a few bytes short: a choice that does not fit
+    // after all gives way to the next best, and should none fit, the last one keeps fewer
+    // components until it does.
+    Candidate chosen = *best();
     for (;;) {
         const std::vector<int> kept = kept_per_block(order, model.blocks.size(), chosen.sections);
         Package package = package_at(truncated(model, kept), chosen.quality);
-        if (package.file_bytes <= bytes || chosen.sections == 1) {
-            if (package.file_bytes > bytes)
-                fail("--target-size {}: even one component takes {} bytes", bytes,
-                     package.file_bytes);
+        if (package.file_bytes <= bytes) {
             if (choice) {
                 choice->components = int(chosen.sections);
                 choice->factorized = int(order.size());
                 choice->quality = coded ? chosen.quality : -1;
                 choice->bytes = package.file_bytes;
-                choice->model_error = std::sqrt(std::max(0.0, chosen.error));
+                choice->de2000 = mean_de2000(from_package(package), sample);
             }
             return package;
         }
-        --chosen.sections;
+        const auto failed = std::find_if(all.begin(), all.end(), [&](const Candidate& c) {
+            return c.quality == chosen.quality && c.sections == chosen.sections;
+        });
+        if (failed != all.end()) all.erase(failed);
+        if (const Candidate* next = best()) {
+            chosen = *next;
+        } else if (chosen.sections > 1) {
+            --chosen.sections;
+        } else {
+            fail("--target-size {}: even one component takes {} bytes", bytes, package.file_bytes);
+        }
     }
 }
 
