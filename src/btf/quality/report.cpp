@@ -453,6 +453,7 @@ Report write_report(const BtfSource& reference, const ReportOptions& options, Pr
         write_text(root / "colorbar-render.svg", colorbar_svg(report.render_heat_max, "\u0394E00"));
     if (!options.keep_packages) fs::remove(root / "packages");
     write_text(root / "rd-psnr.svg", rate_distortion_svg(report, RdMeasure::kPsnr));
+    write_text(root / "rd-de2000.svg", rate_distortion_svg(report, RdMeasure::kDe2000));
     if (options.btf_cielab)
         write_text(root / "rd-btf-cielab.svg", rate_distortion_svg(report, RdMeasure::kBtfCielab));
     report.seconds =

@@ -199,7 +199,7 @@ std::string report_html(const Report& report);
 nlohmann::json report_json(const Report& report);
 
 /// What a rate–distortion plot shows against bits per sample.
-enum class RdMeasure { kPsnr, kBtfCielab };
+enum class RdMeasure { kPsnr, kDe2000, kBtfCielab };
 /// The rate–distortion plot (one series per codec, configurations in order of rate).
 std::string rate_distortion_svg(const Report& report, RdMeasure measure);
 

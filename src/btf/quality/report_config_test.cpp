@@ -210,6 +210,7 @@ TEST(ReportPage, WellFormedEscapedWithOneRowPerConfiguration) {
     std::vector<std::string> sources;
     for (int img : doc.find("img")) sources.push_back(doc[img].attribute("src"));
     EXPECT_EQ(std::count(sources.begin(), sources.end(), "rd-psnr.svg"), 1);
+    EXPECT_EQ(std::count(sources.begin(), sources.end(), "rd-de2000.svg"), 1);
     EXPECT_EQ(std::count(sources.begin(), sources.end(), "rd-btf-cielab.svg"), 1);
     EXPECT_EQ(std::count(sources.begin(), sources.end(), "colorbar-1.svg"), 1);
     EXPECT_EQ(std::count(sources.begin(), sources.end(), "colorbar-2.svg"), 1);
@@ -246,6 +247,12 @@ TEST(ReportPage, JsonAndPlots) {
     EXPECT_EQ(psnr.find("title", fmf).size(), 2u);
     EXPECT_EQ(psnr.find("title", lpca).size(), 1u);
     EXPECT_EQ(psnr.find("polyline", fmf).size(), 1u);
+
+    // Mean CIEDE2000: every configuration has it, so the same series as PSNR.
+    const test::XmlDocument de = test::parse_xml(rate_distortion_svg(report, RdMeasure::kDe2000));
+    ASSERT_TRUE(de.ok()) << de.error;
+    EXPECT_EQ(de.find("title", de.find_with("g", "data-name", "fmf")).size(), 2u);
+    EXPECT_EQ(de.find("title", de.find_with("g", "data-name", "lpca")).size(), 1u);
 
     Report without = report;
     without.configs[2].cielab.reset();

@@ -121,6 +121,8 @@ std::string rate_distortion_svg(const Report& report, RdMeasure measure) {
         double y = 0;
         if (measure == RdMeasure::kPsnr) {
             y = c.metrics.psnr;
+        } else if (measure == RdMeasure::kDe2000) {
+            y = c.metrics.de2000_mean;
         } else {
             if (!c.cielab) continue;
             y = c.cielab->headline().mean;
@@ -144,6 +146,9 @@ std::string rate_distortion_svg(const Report& report, RdMeasure measure) {
     if (measure == RdMeasure::kPsnr) {
         options.title = "PSNR against rate (higher is better)";
         options.y = {"PSNR, linear RGB (dB)", false};
+    } else if (measure == RdMeasure::kDe2000) {
+        options.title = "Mean CIEDE2000 against rate (lower is better)";
+        options.y = {"mean \u0394E00 over every sample", false};
     } else {
         options.title = "BTF-CIELab against rate (lower is better)";
         options.y = {"BTF-CIELab mean \u0394E00, worst condition", false};
@@ -365,6 +370,10 @@ std::string report_html(const Report& report) {
     h += fmt::format(
         "<img src=\"rd-psnr.svg\" width=\"{}\" height=\"{}\" alt=\"PSNR against bits per "
         "sample\"/>\n",
+        kPlotWidth, kPlotHeight);
+    h += fmt::format(
+        "<img src=\"rd-de2000.svg\" width=\"{}\" height=\"{}\" alt=\"mean CIEDE2000 against "
+        "bits per sample\"/>\n",
         kPlotWidth, kPlotHeight);
     if (report.btf_cielab)
         h += fmt::format(

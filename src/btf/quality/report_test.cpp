@@ -78,8 +78,9 @@ TEST_F(WriteReport, WritesEveryPartForTwoConfigurations) {
     const Report report = write_report(*s_source, opts);
     const fs::path dir = m_dir / "report";
     EXPECT_EQ(report.folder, dir);
-    for (const char* name : {"index.html", "report.json", "rd-psnr.svg", "rd-btf-cielab.svg",
-                             "colorbar-1.svg", "colorbar-2.svg", "colorbar-3.svg"})
+    for (const char* name :
+         {"index.html", "report.json", "rd-psnr.svg", "rd-de2000.svg", "rd-btf-cielab.svg",
+          "colorbar-1.svg", "colorbar-2.svg", "colorbar-3.svg"})
         EXPECT_TRUE(fs::is_regular_file(dir / name)) << name;
     EXPECT_TRUE(hidden_entries(m_dir).empty());
 
