@@ -86,9 +86,9 @@ put package fmf.bsvtf "$tmp/fmf.bsvtf"
 put ubo2014 model11.btf "$tmp/model11.btf"
 put ubo2014 rgb_half.btf "$tmp/rgb_half.btf"
 
-# Tiles, a UBO2003 archive, image names.
+# Tiles, coded factor sections, a UBO2003 archive, image names.
 "$seeds" "$tmp/seeds"
-for target in bsvtf_tile ubo2003_archive ubo2003_names utia_names; do
+for target in bsvtf_tile coded_component ubo2003_archive ubo2003_names utia_names; do
   for f in "$tmp/seeds/$target"/*; do put "$target" "$(basename "$f")" "$f"; done
 done
 

@@ -1,6 +1,8 @@
 // fuzz_make_seeds OUT: writes the seed inputs that no `btf` command writes, with the project's
 // own writers, into OUT/<target>/ (fuzz/make_corpus.sh runs it):
 //   bsvtf_tile       tiles encoded by encode_tile (DCT and lossless, with and without parent)
+//   coded_component  coded factor sections by put_component (channel prediction or distances,
+//                    DCT image or plain texels), behind the target's two shape bytes
 //   ubo2003_archive  a zip archive of one UBO2003 view (81 tiny JPEGs), one of HDR images
 //   ubo2003_names    the names of such materials, one per line (with and without view folder)
 //   utia_names       UTIA image names made by utia::file_name, one per line
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include "btf/bsvtf/tile_codec.h"
+#include "btf/codecs/factor/coded.h"
 #include "btf/core/direction.h"
 #include "btf/core/image.h"
 #include "btf/io/image_set.h"
@@ -61,6 +64,34 @@ void tiles(const fs::path& out) {
                 write_file(out / "bsvtf_tile" / ("tile" + std::to_string(n++)), input);
             }
     }
+}
+
+// Inputs of fuzz/coded_component.cpp: its shape bytes, then a section put_component writes for
+// that shape.
+void coded_components(const fs::path& out) {
+    namespace coded = factor::coded;
+    int n = 0;
+    for (const uint8_t rows_byte : {uint8_t(80), uint8_t(3)})  // 81 rows (27 triples), 4
+        for (const uint8_t shape_byte :
+             {uint8_t(0x77), uint8_t(0xF3)}) {  // 8 × 8 image, 4 × 8 plain
+            const int rows = 1 + rows_byte % 96;
+            const int texels = (1 + (shape_byte & 15)) * (1 + ((shape_byte >> 4) & 7));
+            std::vector<float> a(static_cast<size_t>(rows)), b(static_cast<size_t>(texels));
+            for (int i = 0; i < rows; ++i)
+                a[size_t(i)] = std::sin(0.2f * float(i / 3)) + 0.1f * float(i % 3);
+            for (int t = 0; t < texels; ++t)
+                b[size_t(t)] = std::cos(0.3f * float(t)) * float(1 + t % 5);
+            const coded::Image image =
+                (shape_byte & 128)
+                    ? coded::Image{}
+                    : coded::Image{1 + (shape_byte & 15), 1 + ((shape_byte >> 4) & 7)};
+            for (const double step : {0.01, 0.3}) {
+                std::vector<uint8_t> input = {rows_byte, shape_byte};
+                coded::put_component(input, {a.data(), rows, 1}, {b.data(), texels, 1}, image,
+                                     step);
+                write_file(out / "coded_component" / ("component" + std::to_string(n++)), input);
+            }
+        }
 }
 
 // The UBO2003 name of the image of (view, light): "tvTTT_pvPPP/NNNNN tlTTT plPPP tvTTT pvPPP.ext".
@@ -139,6 +170,7 @@ int main(int argc, char** argv) {
         const fs::path scratch = out / ".scratch";
         fs::create_directories(scratch);
         tiles(out);
+        coded_components(out);
         ubo2003(out, scratch);
         utia_names(out);
         fs::remove_all(scratch);

@@ -1,32 +1,55 @@
 // Coded factor storage (model.quantization "coded"; docs/formats.md, "Factorization sections";
 // src/btf/codecs/factor/coded.cpp): one component section holds a's codes, differences at a
-// prediction distance, and b's, either alike or as 8 × 8 DCT blocks of the periodically extended
-// texel image written band by band. Decoded as the C++ reader decodes: the inverse DCT in double
-// in the same order, every value rounded to the nearest half float.
+// prediction distance or by channel prediction, and b's, either alike or as 8 × 8 DCT blocks of
+// the periodically extended texel image written band by band; format 2 range-codes the integers
+// (./rangecoder), format 1 wrote varints. Decoded as the C++ reader decodes: the inverse DCT in
+// double in the same order, every value rounded to the nearest half float.
 
 import { inverseDct, Varints, ZIGZAG } from "./dct8";
 import { floatToHalf, halfToFloat } from "./half";
+import { IntegerModel, RangeDecoder } from "./rangecoder";
 
-const FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
+const RANGE_FORMAT = 2, VARINT_FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
+// The integer streams (contexts) of format 2, as coded.cpp's Stream.
+const ANGULAR = 0, ANGULAR_CHROMA = 1, TEXELS = 2, DC = 3, BANDS = 4, STREAMS = BANDS + 9;
+const bandGroup = (k: number): number => {
+  let group = 1;
+  for (const start of [3, 6, 10, 15, 21, 28, 36]) if (k >= start) ++group;
+  return group;
+};
+
+interface Reader {
+  get(stream: number): number;
+}
 
 const asHalf = (v: number): number => halfToFloat(floatToHalf(Math.fround(v)));
 
-function plain(v: Varints, n: number, step: number, stride: number): Float32Array {
+// Differences at a distance, or (stride 0, rows of 3 channels) the middle channel's differences
+// along the rows, then the outer channels' offsets to it as differences along the rows.
+function plain(v: Reader, n: number, step: number, stride: number, stream: number): Float32Array {
   const codes = new Float64Array(n), out = new Float32Array(n);
-  for (let i = 0; i < n; ++i) {
-    codes[i] = v.next() + (i >= stride ? codes[i - stride] : 0);
-    out[i] = asHalf(codes[i] * step);
+  if (stride === 0) {
+    for (let i = 0; i < n; i += 3) {
+      const before = i >= 3;
+      codes[i + 1] = v.get(ANGULAR) + (before ? codes[i - 2] : 0);
+      for (const ch of [0, 2])
+        codes[i + ch] = v.get(ANGULAR_CHROMA) + (before ? codes[i - 3 + ch] - codes[i - 2] : 0) + codes[i + 1];
+    }
+  } else {
+    for (let i = 0; i < n; ++i) codes[i] = v.get(stream) + (i >= stride ? codes[i - stride] : 0);
   }
+  for (let i = 0; i < n; ++i) out[i] = asHalf(codes[i] * step);
   return out;
 }
 
-function image(v: Varints, width: number, height: number, step: number): Float32Array {
+function image(v: Reader, width: number, height: number, step: number): Float32Array {
   const bw = Math.ceil(width / 8), bh = Math.ceil(height / 8), blocks = bw * bh;
   const codes = new Float64Array(blocks * 64);
   for (let k = 0; k < 64; ++k) {
     let previous = 0;
+    const stream = k === 0 ? DC : BANDS + bandGroup(k);
     for (let b = 0; b < blocks; ++b) {
-      const d = v.next();
+      const d = v.get(stream);
       const value = k === 0 ? d + previous : d;
       codes[b * 64 + k] = value;
       previous = value;
@@ -61,19 +84,31 @@ export function decodeCodedComponent(
 ): { a: Float32Array; b: Float32Array } {
   const what = `section '${name}'`;
   if (data.length < HEAD) throw new Error(`${what}: ${data.length} bytes, shorter than a coded component's head`);
-  if (data[0] !== FORMAT) throw new Error(`${what}: unknown coded format ${data[0]}`);
+  const format = data[0];
+  if (format !== RANGE_FORMAT && format !== VARINT_FORMAT) throw new Error(`${what}: unknown coded format ${format}`);
   const aStride = data[1], kind = data[2], bStride = data[3];
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   const steps = [view.getFloat32(4, true), view.getFloat32(8, true)];
   const isImage = !!texelImage && texelImage.width > 0 && texelImage.height > 0 && texelImage.width * texelImage.height === texels;
-  if (aStride < 1 || aStride > MAX_STRIDE) throw new Error(`${what}: prediction distance ${aStride}`);
+  // Prediction 0 (channels) is format 2's, for rows of 3 channels.
+  if (aStride > MAX_STRIDE || (aStride === 0 && (format === VARINT_FORMAT || rows % 3 !== 0)))
+    throw new Error(`${what}: prediction distance ${aStride}`);
   if (kind !== PLAIN && kind !== DCT_IMAGE) throw new Error(`${what}: unknown texel coding ${kind}`);
   if (kind === DCT_IMAGE && !isImage) throw new Error(`${what}: DCT-coded texels, but the block's texels are not an image`);
   if (kind === PLAIN && (bStride < 1 || bStride > MAX_STRIDE)) throw new Error(`${what}: prediction distance ${bStride}`);
   for (const s of steps) if (!(s > 0) || !Number.isFinite(s)) throw new Error(`${what}: quantization step ${s}`);
-  const v = new Varints(data, HEAD, what);
-  const a = plain(v, rows, steps[0], aStride);
-  const b = kind === DCT_IMAGE ? image(v, texelImage!.width, texelImage!.height, steps[1]) : plain(v, texels, steps[1], bStride);
-  if (v.at !== data.length) throw new Error(`${what}: ${data.length - v.at} bytes after the coded factors`);
+  let reader: Reader, left: () => number;
+  if (format === VARINT_FORMAT) {
+    const v = new Varints(data, HEAD, what);
+    reader = { get: () => v.next() };
+    left = () => data.length - v.at;
+  } else {
+    const coder = new RangeDecoder(data, HEAD, what), model = new IntegerModel(STREAMS);
+    reader = { get: (stream) => model.get(coder, stream) };
+    left = () => coder.remaining;
+  }
+  const a = plain(reader, rows, steps[0], aStride, ANGULAR);
+  const b = kind === DCT_IMAGE ? image(reader, texelImage!.width, texelImage!.height, steps[1]) : plain(reader, texels, steps[1], bStride, TEXELS);
+  if (left() !== 0) throw new Error(`${what}: ${left()} bytes after the coded factors`);
   return { a, b };
 }

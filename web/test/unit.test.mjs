@@ -16,7 +16,7 @@ let fx; // fixtures
 before(async () => {
   fx = makeFixtures();
   const out = path.join(ARTIFACTS, "unit", "modules.mjs");
-  M = await bundleModules(["half", "package", "interp", "factor", "meshes", "scene", "reference", "cache", "bsvtf"], out);
+  M = await bundleModules(["half", "package", "interp", "factor", "meshes", "scene", "reference", "cache", "bsvtf", "coded", "rangecoder"], out);
   xxh64 = await M.loadChecksum();
 });
 
@@ -248,19 +248,44 @@ test("damaged coded components give the C++ reader's errors, naming the section"
   const add = (bytes) => () => new M.FactorModel(info).addComponent("b0.k0", bytes);
   assert.doesNotThrow(add(k0));
   assert.throws(add(k0.subarray(0, 5)), /^Error: section 'b0\.k0': 5 bytes, shorter than a coded component's head$/);
-  assert.throws(add(k0.subarray(0, k0.length - 1)), /^Error: section 'b0\.k0': the coefficients end early$/);
+  assert.throws(add(k0.subarray(0, k0.length - 1)), /^Error: section 'b0\.k0': the coded factors end early$/);
   const longer = new Uint8Array(k0.length + 1);
   longer.set(k0);
   assert.throws(add(longer), /^Error: section 'b0\.k0': 1 bytes after the coded factors$/);
   for (const [at, value, message] of [
     [0, 9, "unknown coded format 9"],
-    [1, 0, "prediction distance 0"],
+    [1, 65, "prediction distance 65"],
     [2, 7, "unknown texel coding 7"],
   ]) {
     const bad = k0.slice();
     bad[at] = value;
     assert.throws(add(bad), new RegExp(`^Error: section 'b0\\.k0': ${message}$`));
   }
+});
+
+// The C++ tests' worked examples (range_coder_test.cpp, coded_test.cpp), read by the viewer.
+test("the range decoder and format 1 read the C++ tests' worked examples", () => {
+  const coder = new M.RangeDecoder(new Uint8Array([0x00, 0x7f, 0xff, 0xfc, 0x00]), 0, "x");
+  const probs = new Uint16Array([1024]);
+  assert.equal(coder.bit(probs, 0), 1);
+  assert.equal(probs[0], 1024 - 32);
+  assert.equal(coder.remaining, 0);
+  // Format 1: a = (1, 1.5, 2.5, 3) with step 0.5 as the varints 4, 2, 4, 2; one 8 × 8 block with DC 34.
+  const head = new Uint8Array(12);
+  head.set([1, 1, 1, 0]);
+  const view = new DataView(head.buffer);
+  view.setFloat32(4, 0.5, true);
+  view.setFloat32(8, Math.fround(1 / Math.sqrt(4.625)), true);
+  const bytes = new Uint8Array(12 + 5 + 63);
+  bytes.set(head);
+  bytes.set([4, 2, 4, 2, 0x44], 12);
+  const { a, b } = M.decodeCodedComponent(bytes, 4, 64, { width: 8, height: 8 }, "b0.k0");
+  assert.deepEqual(Array.from(a), [1, 1.5, 2.5, 3]);
+  const dc = (34 * Math.fround(1 / Math.sqrt(4.625))) / 8;
+  for (const v of b) assert.ok(Math.abs(v - dc) <= dc * 2 ** -11);
+  // Channel prediction is format 2's only.
+  bytes[1] = 0;
+  assert.throws(() => M.decodeCodedComponent(bytes, 4, 64, { width: 8, height: 8 }, "b0.k0"), /^Error: section 'b0\.k0': prediction distance 0$/);
 });
 
 test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {

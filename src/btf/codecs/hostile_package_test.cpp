@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <map>
 
 #include "btf/codecs/codec.h"
@@ -80,18 +81,16 @@ TEST(HostilePackage, TheUneditedPackagesOpen) {
 // large that the decoded factor overflows are refused as not finite.
 TEST(HostilePackage, DamagedCodedComponentsAreRefused) {
     EXPECT_THAT(open_error("fmf-coded", [](Package& p) { section(p, "b0.k1").data.pop_back(); }),
-                HasSubstr("section 'b0.k1': the coefficients end early"));
+                HasSubstr("section 'b0.k1': the coded factors end early"));
     EXPECT_THAT(open_error("fmf-coded", [](Package& p) { section(p, "b0.k0").data[2] = 1 + 8; }),
                 HasSubstr("section 'b0.k0': unknown texel coding 9"));
     EXPECT_THAT(open_error("fmf-coded",
                            [](Package& p) {
-                               // a's first code: the largest 64-bit varint; the step times it
-                               // overflows a float.
+                               // a's step the largest float: every code of 2 or more times it
+                               // overflows.
                                auto& d = section(p, "b0.k0").data;
-                               const std::vector<uint8_t> huge = {0xfe, 0xff, 0xff, 0xff, 0xff,
-                                                                  0xff, 0xff, 0xff, 0xff, 0x01};
-                               d.erase(d.begin() + 12);  // the first varint of a is one byte
-                               d.insert(d.begin() + 12, huge.begin(), huge.end());
+                               const float huge = std::numeric_limits<float>::max();
+                               std::memcpy(d.data() + 4, &huge, 4);
                            }),
                 HasSubstr("not a finite number"));
 }

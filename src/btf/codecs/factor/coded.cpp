@@ -10,6 +10,7 @@
 #include "btf/util/dct8.h"
 #include "btf/util/error.h"
 #include "btf/util/half.h"
+#include "btf/util/range_coder.h"
 
 namespace btf::factor::coded {
 
@@ -44,35 +45,100 @@ int64_t rounded(double v) {
     return int64_t(std::clamp(std::nearbyint(v), -kMaxCode, kMaxCode));
 }
 
-// Uniform rounding, as differences to the code `stride` values before.
-void put_plain(std::vector<uint8_t>& out, ConstColumn c, float step, int stride) {
-    std::vector<int64_t> codes(size_t(c.n));
-    for (int64_t i = 0; i < c.n; ++i) {
-        codes[size_t(i)] = rounded(double(c.data[i * c.stride]) / step);
-        dct8::put_varint(out, codes[size_t(i)] - (i >= stride ? codes[size_t(i - stride)] : 0));
-    }
+// The integers of a section: format 1 reads zig-zag varints, format 2 the range coder's
+// integer model (util/range_coder.h), whose context says which stream a value is in.
+enum Stream : int {
+    kAngular = 0,        // a: differences along the rows (or the middle channel's)
+    kAngularChroma = 1,  // a, channel prediction: the outer channels' differences to the middle
+    kTexels = 2,         // b without a neighbourhood (lpca's clusters)
+    kDc = 3,             // b: DC differences along the blocks
+    kBands = 4,          // b: 4 + the band's group (1…8: the zig-zag diagonals, 36…63 last)
+    kStreams = kBands + 9
+};
+
+int band_group(int k) {
+    // The zig-zag index where diagonal d (d = 1…7) starts: 1, 3, 6, 10, 15, 21, 28; the lower
+    // triangle (36…63) is group 8.
+    int group = 1;
+    for (const int start : {3, 6, 10, 15, 21, 28, 36})
+        if (k >= start) ++group;
+    return group;
 }
 
-const uint8_t* get_plain(const uint8_t* p, const uint8_t* end, Column c, float step, int stride,
-                         std::string_view what) {
+struct VarintReader {
+    const uint8_t* p;
+    const uint8_t* end;
+    std::string_view what;
+    int64_t get(int) { return dct8::get_varint(p, end, what); }
+};
+
+struct RangeReader {
+    range::Decoder& coder;
+    range::IntegerModel& model;
+    int64_t get(int stream) { return model.get(coder, stream); }
+};
+
+struct RangeWriter {
+    range::Encoder& coder;
+    range::IntegerModel& model;
+    void put(int stream, int64_t v) { model.put(coder, stream, v); }
+};
+
+// Wrapping addition: a hostile difference must not overflow (the value is then checked for being
+// finite like every decoded factor).
+int64_t plus(int64_t a, int64_t b) {
+    return int64_t(uint64_t(a) + uint64_t(b));
+}
+
+// Uniform rounding, as differences to the code `stride` values before; stride 0 (3 channels per
+// row): the middle channel as differences along the rows, the outer ones as differences of
+// their offsets to the middle one, written middle first.
+template <class Writer>
+void put_plain(Writer& out, ConstColumn c, float step, int stride, int stream) {
     std::vector<int64_t> codes(size_t(c.n));
-    for (int64_t i = 0; i < c.n; ++i) {
-        const int64_t d = dct8::get_varint(p, end, what);
-        // Wrapping arithmetic: a hostile difference must not overflow (the value is then checked
-        // for being finite like every decoded factor).
-        const int64_t code =
-            int64_t(uint64_t(d) + uint64_t(i >= stride ? codes[size_t(i - stride)] : 0));
-        codes[size_t(i)] = code;
-        c.data[i * c.stride] = as_half(double(code) * step);
+    for (int64_t i = 0; i < c.n; ++i)
+        codes[size_t(i)] = rounded(double(c.data[i * c.stride]) / step);
+    if (stride == 0) {
+        for (int64_t i = 0; i < c.n; i += 3) {
+            const int64_t* q = &codes[size_t(i)];
+            const int64_t* before = i >= 3 ? q - 3 : nullptr;
+            out.put(kAngular, q[1] - (before ? before[1] : 0));
+            for (const int ch : {0, 2})
+                out.put(kAngularChroma, (q[ch] - q[1]) - (before ? before[ch] - before[1] : 0));
+        }
+        return;
     }
-    return p;
+    for (int64_t i = 0; i < c.n; ++i)
+        out.put(stream, codes[size_t(i)] - (i >= stride ? codes[size_t(i - stride)] : 0));
+}
+
+template <class Reader>
+void get_plain(Reader& in, Column c, float step, int stride, int stream) {
+    std::vector<int64_t> codes(size_t(c.n));
+    if (stride == 0) {
+        for (int64_t i = 0; i < c.n; i += 3) {
+            int64_t* q = &codes[size_t(i)];
+            const int64_t* before = i >= 3 ? q - 3 : nullptr;
+            q[1] = plus(in.get(kAngular), before ? before[1] : 0);
+            for (const int ch : {0, 2})
+                q[ch] = plus(plus(in.get(kAngularChroma),
+                                  before ? int64_t(uint64_t(before[ch]) - uint64_t(before[1])) : 0),
+                             q[1]);
+        }
+    } else {
+        for (int64_t i = 0; i < c.n; ++i)
+            codes[size_t(i)] = plus(in.get(stream), i >= stride ? codes[size_t(i - stride)] : 0);
+    }
+    for (int64_t i = 0; i < c.n; ++i)
+        c.data[i * c.stride] = as_half(double(codes[size_t(i)]) * step);
 }
 
 int blocks_along(int size) {
     return (size + 7) / 8;
 }
 
-void put_image(std::vector<uint8_t>& out, ConstColumn c, Image image, float step) {
+template <class Writer>
+void put_image(Writer& out, ConstColumn c, Image image, float step) {
     const int bw = blocks_along(image.width), bh = blocks_along(image.height);
     const size_t blocks = size_t(bw) * size_t(bh);
     std::vector<int64_t> codes(blocks * 64);
@@ -94,26 +160,26 @@ void put_image(std::vector<uint8_t>& out, ConstColumn c, Image image, float step
         }
     for (int k = 0; k < 64; ++k) {
         int64_t previous = 0;
+        const int stream = k == 0 ? kDc : kBands + band_group(k);
         for (size_t b = 0; b < blocks; ++b) {
             const int64_t v = codes[b * 64 + size_t(k)];
-            dct8::put_varint(out, k == 0 ? v - previous : v);
+            out.put(stream, k == 0 ? v - previous : v);
             previous = v;
         }
     }
 }
 
-const uint8_t* get_image(const uint8_t* p, const uint8_t* end, Column c, Image image, float step,
-                         std::string_view what) {
+template <class Reader>
+void get_image(Reader& in, Column c, Image image, float step) {
     const int bw = blocks_along(image.width), bh = blocks_along(image.height);
     const size_t blocks = size_t(bw) * size_t(bh);
     std::vector<int64_t> codes(blocks * 64);
     for (int k = 0; k < 64; ++k) {
         int64_t previous = 0;
+        const int stream = k == 0 ? kDc : kBands + band_group(k);
         for (size_t b = 0; b < blocks; ++b) {
-            const int64_t d = dct8::get_varint(p, end, what);
-            // Wrapping arithmetic: a hostile difference must not overflow (the value is then
-            // checked for being finite like every decoded factor).
-            const int64_t v = k == 0 ? int64_t(uint64_t(d) + uint64_t(previous)) : d;
+            const int64_t d = in.get(stream);
+            const int64_t v = k == 0 ? plus(d, previous) : d;
             codes[b * 64 + size_t(k)] = v;
             previous = v;
         }
@@ -131,7 +197,6 @@ const uint8_t* get_image(const uint8_t* p, const uint8_t* end, Column c, Image i
                         c.data[(int64_t(y) * image.width + x) * c.stride] = as_half(out[r * 8 + n]);
                 }
         }
-    return p;
 }
 
 bool is_image(Image image, int64_t n) {
@@ -148,30 +213,40 @@ namespace {
 
 void put_coded(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image, float step_a,
                float step_b) {
-    // a's prediction distance: the one that codes shortest (3 for rgb rows: the same channel of
-    // the previous light; 1 for planes).
-    std::vector<uint8_t> best;
-    int best_stride = 1;
-    for (const int stride : {1, 2, 3, 4, 6}) {
-        std::vector<uint8_t> trial;
-        put_plain(trial, a, step_a, stride);
-        if (best.empty() || trial.size() < best.size()) {
-            best.swap(trial);
-            best_stride = stride;
+    // a's prediction: the one that codes shortest (channel prediction for rgb rows; 1 for
+    // planes).
+    std::vector<int> predictions = {1, 2, 3, 4, 6};
+    if (a.n % 3 == 0) predictions.insert(predictions.begin(), 0);
+    size_t best_size = 0;
+    int best = 1;
+    for (const int prediction : predictions) {
+        range::Encoder coder;
+        range::IntegerModel model(kStreams);
+        RangeWriter trial{coder, model};
+        put_plain(trial, a, step_a, prediction, kAngular);
+        const size_t size = coder.finish().size();
+        if (best_size == 0 || size < best_size) {
+            best_size = size;
+            best = prediction;
         }
     }
     const bool dct = is_image(image, b.n);
-    const uint8_t head[4] = {kFormat, uint8_t(best_stride), dct ? kDctImage : kPlain,
+    const uint8_t head[4] = {kFormat, uint8_t(best), dct ? kDctImage : kPlain,
                              uint8_t(dct ? 0 : 1)};
     out.insert(out.end(), head, head + 4);
     const float steps[2] = {step_a, step_b};
     const auto* bytes = reinterpret_cast<const uint8_t*>(steps);
     out.insert(out.end(), bytes, bytes + 8);
-    out.insert(out.end(), best.begin(), best.end());
+    range::Encoder coder;
+    range::IntegerModel model(kStreams);
+    RangeWriter writer{coder, model};
+    put_plain(writer, a, step_a, best, kAngular);
     if (dct)
-        put_image(out, b, image, step_b);
+        put_image(writer, b, image, step_b);
     else
-        put_plain(out, b, step_b, 1);
+        put_plain(writer, b, step_b, 1, kTexels);
+    const std::vector<uint8_t> payload = coder.finish();
+    out.insert(out.end(), payload.begin(), payload.end());
 }
 
 double dot(ConstColumn x, const std::vector<float>& y) {
@@ -211,11 +286,15 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
                    std::string_view name) {
     const std::string what = fmt::format("section '{}'", name);
     if (size < kHead) fail("{}: {} bytes, shorter than a coded component's head", what, size);
-    if (data[0] != kFormat) fail("{}: unknown coded format {}", what, int(data[0]));
+    const int format = data[0];
+    if (format != kFormat && format != kVarintFormat)
+        fail("{}: unknown coded format {}", what, format);
     const int a_stride = data[1], kind = data[2], b_stride = data[3];
     float steps[2];
     std::memcpy(steps, data + 4, 8);
-    if (a_stride < 1 || a_stride > kMaxStride) fail("{}: prediction distance {}", what, a_stride);
+    // Prediction 0 (channels) is format 2's, for rows of 3 channels.
+    if (a_stride > kMaxStride || (a_stride == 0 && (format == kVarintFormat || a.n % 3 != 0)))
+        fail("{}: prediction distance {}", what, a_stride);
     if (kind != kPlain && kind != kDctImage) fail("{}: unknown texel coding {}", what, kind);
     if (kind == kDctImage && !is_image(image, b.n))
         fail("{}: DCT-coded texels, but the block's texels are not an image", what);
@@ -223,12 +302,26 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
         fail("{}: prediction distance {}", what, b_stride);
     for (const float s : steps)
         if (!(s > 0) || !std::isfinite(s)) fail("{}: quantization step {}", what, s);
-    const uint8_t* p = data + kHead;
-    const uint8_t* end = data + size;
-    p = get_plain(p, end, a, steps[0], a_stride, what);
-    p = kind == kDctImage ? get_image(p, end, b, image, steps[1], what)
-                          : get_plain(p, end, b, steps[1], b_stride, what);
-    if (p != end) fail("{}: {} bytes after the coded factors", what, end - p);
+    auto factors = [&](auto& in) {
+        get_plain(in, a, steps[0], a_stride, kAngular);
+        if (kind == kDctImage)
+            get_image(in, b, image, steps[1]);
+        else
+            get_plain(in, b, steps[1], b_stride, kTexels);
+    };
+    size_t left = 0;
+    if (format == kVarintFormat) {
+        VarintReader in{data + kHead, data + size, what};
+        factors(in);
+        left = size_t(in.end - in.p);
+    } else {
+        range::Decoder coder(data + kHead, size - kHead, what);
+        range::IntegerModel model(kStreams);
+        RangeReader in{coder, model};
+        factors(in);
+        left = coder.remaining();
+    }
+    if (left != 0) fail("{}: {} bytes after the coded factors", what, left);
 }
 
 }  // namespace btf::factor::coded

@@ -11,14 +11,18 @@
 /// model's values, so each 10 more halves the step.
 ///
 /// a: uniform rounding, coded as differences to the value `stride` rows before (the same
-/// channel of the previous light), zig-zag varints. b: where b is an image (W × H texels of a
-/// level, one cluster), 8 × 8 DCT blocks of the image extended periodically to a multiple of 8
-/// (the evaluator wraps around the edges), quantized with a dead zone (|c|/step + 1/3, rounded
-/// down: coefficients under 2/3 of a step become 0) and written band by band (every block's
-/// first coefficient in zig-zag order, as differences along the blocks, then every block's
+/// channel of the previous light) or, for rows of 3 channels, by channel prediction (the middle
+/// channel as differences along the rows, the outer ones as differences of their offsets to the
+/// middle one: a component's colour changes slowly over the directions). b: where b is an image (W
+/// × H texels of a level, one cluster), 8 × 8 DCT blocks of the image extended periodically to a
+/// multiple of 8 (the evaluator wraps around the edges), quantized with a dead zone (|c|/step +
+/// 1/3, rounded down: coefficients under 2/3 of a step become 0) and written band by band (every
+/// block's first coefficient in zig-zag order, as differences along the blocks, then every block's
 /// second, …); elsewhere (lpca's clusters) uniform rounding with differences like a. The
-/// package container's zstd codes the varints. Decoded values are rounded to half floats (so
-/// the evaluator keeps half rows, as for f16): a further relative error of at most 2⁻¹¹.
+/// integers are written with an adaptive binary range coder (util/range_coder.h), whose contexts
+/// separate a's streams, DC differences and the bands by zig-zag diagonal (format 2); format 1,
+/// still read, wrote zig-zag varints for the container's zstd. Decoded values are rounded to half
+/// floats (so the evaluator keeps half rows, as for f16): a further relative error of at most 2⁻¹¹.
 
 #include <cstdint>
 #include <string_view>
@@ -26,7 +30,8 @@
 
 namespace btf::factor::coded {
 
-constexpr uint8_t kFormat = 1;
+constexpr uint8_t kFormat = 2;        ///< written: range-coded integers
+constexpr uint8_t kVarintFormat = 1;  ///< read: varints (the first coded packages)
 
 /// One column of a factor: n values, `stride` floats apart.
 struct Column {
