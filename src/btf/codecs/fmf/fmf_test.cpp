@@ -51,20 +51,25 @@ Package encode(const BtfSource& source, Params params) {
     return fmf_codec().encode(source, params);
 }
 
-double rmse(const BtfSource& source, const Material& material) {
-    double sum = 0;
-    int64_t n = 0;
+// f(source value, material value) at every texel of every image.
+template <class F>
+void for_each_sample(const BtfSource& source, const Material& material, F&& f) {
     for (int v = 0; v < source.num_views(); ++v)
         for (int l = 0; l < source.num_lights(); ++l) {
             const Image image = source.image(v, l);
             for (int y = 0; y < source.height(); ++y)
-                for (int x = 0; x < source.width(); ++x) {
-                    const Rgb a = image.rgb(x, y), b = material.eval_sample(x, y, v, l);
-                    sum += (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) +
-                           (a.b - b.b) * (a.b - b.b);
-                    n += 3;
-                }
+                for (int x = 0; x < source.width(); ++x)
+                    f(image.rgb(x, y), material.eval_sample(x, y, v, l));
         }
+}
+
+double rmse(const BtfSource& source, const Material& material) {
+    double sum = 0;
+    int64_t n = 0;
+    for_each_sample(source, material, [&](const Rgb& a, const Rgb& b) {
+        sum += (a.r - b.r) * (a.r - b.r) + (a.g - b.g) * (a.g - b.g) + (a.b - b.b) * (a.b - b.b);
+        n += 3;
+    });
     return std::sqrt(sum / n);
 }
 
@@ -72,14 +77,10 @@ double rmse(const BtfSource& source, const Material& material) {
 double mean_de2000(const BtfSource& source, const Material& material) {
     double sum = 0;
     int64_t n = 0;
-    for (int v = 0; v < source.num_views(); ++v)
-        for (int l = 0; l < source.num_lights(); ++l) {
-            const Image image = source.image(v, l);
-            for (int y = 0; y < source.height(); ++y)
-                for (int x = 0; x < source.width(); ++x, ++n)
-                    sum += ciede2000(rgb_to_lab(image.rgb(x, y)),
-                                     rgb_to_lab(material.eval_sample(x, y, v, l)));
-        }
+    for_each_sample(source, material, [&](const Rgb& a, const Rgb& b) {
+        sum += ciede2000(rgb_to_lab(a), rgb_to_lab(b));
+        ++n;
+    });
     return sum / double(n);
 }
 
