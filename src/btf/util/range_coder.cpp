@@ -119,7 +119,8 @@ void IntegerModel::put(Encoder& coder, int context, int64_t v) {
     if (m != 0) {
         coder.direct(v < 0 ? 1 : 0, 1);
         const int k = 63 - __builtin_clzll(m);
-        for (int i = 0; i < k; ++i) coder.bit(s.unary[size_t(std::min(i, kClassProbabilities - 1))], 1);
+        for (int i = 0; i < k; ++i)
+            coder.bit(s.unary[size_t(std::min(i, kClassProbabilities - 1))], 1);
         coder.bit(s.unary[size_t(std::min(k, kClassProbabilities - 1))], 0);
         coder.direct(m, k);  // the bits under the leading one
     }
