@@ -20,8 +20,9 @@
 /// block's first coefficient in zig-zag order, as differences along the blocks, then every block's
 /// second, …); elsewhere (lpca's clusters) uniform rounding with differences like a. The
 /// integers are written with an adaptive binary range coder (util/range_coder.h), whose contexts
-/// separate a's streams, DC differences and the bands by zig-zag diagonal (format 2); format 1,
-/// still read, wrote zig-zag varints for the container's zstd. Decoded values are rounded to half
+/// separate a's streams, DC differences and the bands by zig-zag diagonal (format 2), or as
+/// zig-zag varints for the container's zstd (format 1, distances only), whichever is shorter
+/// after zstd: zstd's matches find repeated runs the coder's adaptive models miss. Decoded values are rounded to half
 /// floats (so the evaluator keeps half rows, as for f16): a further relative error of at most 2⁻¹¹.
 
 #include <cstdint>
@@ -30,8 +31,11 @@
 
 namespace btf::factor::coded {
 
-constexpr uint8_t kFormat = 2;        ///< written: range-coded integers
-constexpr uint8_t kVarintFormat = 1;  ///< read: varints (the first coded packages)
+constexpr uint8_t kFormat = 2;        ///< range-coded integers
+constexpr uint8_t kVarintFormat = 1;  ///< varints, for the container's zstd
+/// Each section is written in the format that is shorter after zstd at this level (the
+/// container's default).
+constexpr int kZstdLevelForChoice = 9;
 
 /// One column of a factor: n values, `stride` floats apart.
 struct Column {
