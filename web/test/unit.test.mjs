@@ -245,6 +245,7 @@ test("damaged model sections give one clear error naming the section", () => {
 test("damaged coded components give the C++ reader's errors, naming the section", () => {
   const { info, sections } = decode(fx.packages.woven_coded);
   const k0 = sections.find((s) => s.entry.name === "b0.k0").data;
+  assert.equal(k0[0], 2, "the fixture's first component is range-coded (format 2), as the messages below assume");
   const add = (bytes) => () => new M.FactorModel(info).addComponent("b0.k0", bytes);
   assert.doesNotThrow(add(k0));
   assert.throws(add(k0.subarray(0, 5)), /^Error: section 'b0\.k0': 5 bytes, shorter than a coded component's head$/);
