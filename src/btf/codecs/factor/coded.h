@@ -22,8 +22,9 @@
 /// integers are written with an adaptive binary range coder (util/range_coder.h), whose contexts
 /// separate a's streams, DC differences and the bands by zig-zag diagonal (format 2), or as
 /// zig-zag varints for the container's zstd (format 1, distances only), whichever is shorter
-/// after zstd: zstd's matches find repeated runs the coder's adaptive models miss. Decoded values are rounded to half
-/// floats (so the evaluator keeps half rows, as for f16): a further relative error of at most 2⁻¹¹.
+/// after zstd: zstd's matches find repeated runs the coder's adaptive models miss. Decoded values
+/// are rounded to half floats (so the evaluator keeps half rows, as for f16): a further relative
+/// error of at most 2⁻¹¹.
 
 #include <cstdint>
 #include <string_view>

@@ -1,0 +1,265 @@
+#!/usr/bin/env python3
+"""Rate–distortion of coded factor storage against the old storages and mlvq (issue 23's
+acceptance; docs/benchmarks.md, "Rate–distortion with coded factors").
+
+For every material (the seven synthetic presets at SIZE² × 81 × 81 and the real measured view),
+every configuration of CONFIGS is compressed with `btf compress` and measured with `btf quality`
+(mean CIEDE2000 over every sample; BTF-CIELab on one viewing condition for the configurations on
+a rate–distortion front). Results are cached in a JSON-lines file, so a rerun measures only what
+is missing. Then, per material, the lower front of each family (old: f16/u8 storage of every
+factorization codec; new: coded storage; mlvq) and the size of the new front at the mean ΔE00 of
+each point of the old front and of mlvq's (interpolated in log size between neighbouring front
+points), as a table.
+
+Usage:
+  python3 bench/coded_rd.py [--build build/release] [--size 128] [--work DIR] [--materials a,b]
+                            [--btf-cielab] [--table]
+"""
+
+import argparse
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+
+PRESETS = ["woven_fabric", "embroidered_linen", "knitted_wool", "leather", "ceramic_tiles",
+           "brushed_metal", "lacquered_wood"]
+REAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data",
+                    "ubo2003-proposte-view000")
+
+
+def old_configs():
+    """f16 and u8 storage: fmf with and without log at several ranks (f16 only where it can
+    compete: at twice u8's bytes it is on the front only for few components), and perceptual's
+    CIELab planes."""
+    out = []
+    for log in ["", ",log=true"]:
+        for c in [4, 8]:
+            out.append(f"fmf:components={c},quantize=f16{log}")
+        for c in [4, 8, 16, 32]:
+            out.append(f"fmf:components={c},quantize=u8{log}")
+    for c in [8, 16, 32]:
+        out.append(f"perceptual:components={c},quantize=u8")
+    # The log offset that suits the eye better (closer to CIELab's cube root), as the coded
+    # configurations use it.
+    for c in [4, 8, 16, 32]:
+        out.append(f"fmf:components={c},quantize=u8,log=true,log-eps=0.03")
+    # Local PCA and PCA over views: at these sizes only their smallest settings fit.
+    out.append("lpca:clusters=4,components=4,quantize=u8,log=true,log-eps=0.03")
+    out.append("pca-views:components=2,quantize=u8,log=true,log-eps=0.03")
+    return out
+
+
+def mlvq_configs():
+    return [f"mlvq:threshold={t},chroma-threshold={t}" for t in ["3e-5", "1e-4", "3e-4"]]
+
+
+def family(config):
+    codec, params = config.split(":", 1)
+    if codec == "mlvq":
+        return "mlvq"
+    return "new" if "quantize=coded" in params else "old"
+
+
+def run(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)}: {r.stderr.strip()}")
+    return r.stdout
+
+
+class Sweep:
+    def __init__(self, args):
+        self.args = args
+        self.btf = os.path.join(args.build, "btf")
+        os.makedirs(args.work, exist_ok=True)
+        self.cache_path = args.cache or os.path.join(args.work, f"results-{args.size}.jsonl")
+        self.results = {}
+        for path in [self.cache_path] + [p for p in args.read.split(",") if p]:
+            if os.path.exists(path):
+                with open(path) as f:
+                    for line in f:
+                        r = json.loads(line)
+                        self.results[(r["material"], r["config"])] = r
+
+    def source(self, material):
+        if material == "real":
+            return REAL
+        path = os.path.join(self.args.work, f"{material}-{self.args.size}.h5")
+        if not os.path.exists(path):
+            run([self.btf, "-q", "synth", "--preset", material, "--size", str(self.args.size),
+                 "-o", path])
+        return path
+
+    def save(self, r):
+        self.results[(r["material"], r["config"])] = r
+        with open(self.cache_path, "a") as f:  # the last line of a key wins when read
+            f.write(json.dumps(r) + "\n")
+
+    def package(self, material, config):
+        return os.path.join(self.args.work, "packages",
+                            f"{material}-{config.replace(':', '-').replace(',', '-')}.btfpkg")
+
+    def measure(self, material, config):
+        key = (material, config)
+        if key in self.results:
+            return self.results[key]
+        src = self.source(material)
+        codec, params = config.split(":", 1)
+        pkg = self.package(material, config)
+        os.makedirs(os.path.dirname(pkg), exist_ok=True)
+        cmd = [self.btf, "-q", "compress", src, "--codec", codec, "--no-error", "-o", pkg]
+        for p in params.split(","):
+            if p.startswith("target="):
+                cmd += ["--target-size", p.split("=")[1]]
+            else:
+                cmd += ["-p", p]
+        run(cmd)
+        q = json.loads(run([self.btf, "-q", "quality", src, pkg, "--metrics", "de2000",
+                            "--json"]))
+        r = {"material": material, "config": config, "bytes": os.path.getsize(pkg),
+             "de2000": q["de2000"]["mean"]}
+        print(f"{material:18s} {config:55s} {r['bytes']:9d} B  ΔE00 {r['de2000']:.3f}",
+              flush=True)
+        self.save(r)
+        return r
+
+    def btf_cielab(self, material, config):
+        r = self.results[(material, config)]
+        if "btf_cielab" in r:
+            return r
+        src = self.source(material)
+        q = json.loads(run([self.btf, "-q", "quality", src, self.package(material, config),
+                            "--metrics", "btf-cielab", "--grid", "1", "--json"]))
+        r["btf_cielab"] = q["btf_cielab"]["mean"]
+        print(f"{material:18s} {config:55s} BTF-CIELab {r['btf_cielab']:.3f}", flush=True)
+        self.save(r)
+        return r
+
+
+def listed(config):
+    """Whether a cached result belongs to this script's configurations (the cache may hold
+    others, from earlier trials)."""
+    if family(config) == "new":
+        return "target=" in config
+    return config in old_configs() + mlvq_configs()
+
+
+def old_points(sweep, material):
+    return [r for (m, _), r in sweep.results.items() if m == material and
+            family(r["config"]) == "old" and listed(r["config"])]
+
+
+def front(points, measure="de2000"):
+    """The lower-left front of (bytes, error) points: no other point is smaller and better."""
+    pts = sorted(points, key=lambda r: (r["bytes"], r[measure]))
+    out = []
+    for p in pts:
+        if not out or p[measure] < out[-1][measure]:
+            out.append(p)
+    return out
+
+
+def size_at(fr, error, measure="de2000"):
+    """Bytes the front needs for `error` (log-size interpolation between front points), or None
+    outside the front's range."""
+    for lo, hi in zip(fr, fr[1:]):
+        if hi[measure] <= error <= lo[measure]:
+            t = (lo[measure] - error) / (lo[measure] - hi[measure])
+            return math.exp(math.log(lo["bytes"]) + t * (math.log(hi["bytes"]) -
+                                                         math.log(lo["bytes"])))
+    if fr and fr[0][measure] <= error:
+        return fr[0]["bytes"]  # the smallest point is already good enough: an upper bound
+    return None
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--build", default="build/release")
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--work", default="/tmp/btfkit_coded_rd")
+    ap.add_argument("--materials", default=",".join(PRESETS + ["real"]))
+    ap.add_argument("--families", default="old,new,mlvq")
+    ap.add_argument("--btf-cielab", action="store_true",
+                    help="also BTF-CIELab (one condition) of every front point")
+    ap.add_argument("--new", default="fmf:components=48,quantize=coded,log=true,log-eps=0.03",
+                    help="coded configurations (';'-separated), each compressed to half the "
+                    "size of every point of the old front (--target-size)")
+    ap.add_argument("--cache", default="", help="results file (default: WORK/results-SIZE.jsonl)")
+    ap.add_argument("--read", default="", help="more results files to read (comma-separated)")
+    ap.add_argument("--table", action="store_true", help="only print the tables from the cache")
+    ap.add_argument("--match", default="", help="only the configurations matching this regex")
+    args = ap.parse_args()
+    sweep = Sweep(args)
+    materials = [m for m in args.materials.split(",") if m != "real" or os.path.isdir(REAL)]
+    configs = []
+    fams = args.families.split(",")
+    if "old" in fams:
+        configs += old_configs()
+    if "mlvq" in fams:
+        configs += mlvq_configs()
+    configs = [c for c in configs if re.search(args.match, c)]
+    if not args.table:
+        for m in materials:
+            for c in configs:
+                try:
+                    sweep.measure(m, c)
+                except RuntimeError as e:
+                    print(f"{m} {c}: {e}", file=sys.stderr)
+            # New storage: a package of half the bytes of each point of the old front.
+            if "new" in fams:
+                for p in front(old_points(sweep, m)):
+                    for t in args.new.split(";"):
+                        try:
+                            sweep.measure(m, f"{t},target={p['bytes'] // 2}")
+                        except RuntimeError as e:
+                            print(f"{m} {t}: {e}", file=sys.stderr)
+    report(sweep, materials, args)
+
+
+def ratio_text(new, old):
+    return "—" if new is None else "%.2f" % (new / old)
+
+
+def report(sweep, materials, args):
+    """Per material: the old front, and at each of its points the new front's size for the same
+    mean ΔE00 (— outside the new front's range); then mlvq's points the same way; then a summary
+    line per material."""
+    print("| material | family | front point | bytes | mean ΔE00 | BTF-CIELab | new bytes at that ΔE00 "
+          "| new / this |")
+    print("|---|---|---|---|---|---|---|---|")
+    summary = []
+    for m in materials:
+        rs = [r for (mm, _), r in sweep.results.items() if mm == m and listed(r["config"])]
+        fronts = {f: front([r for r in rs if family(r["config"]) == f])
+                  for f in ["old", "new", "mlvq"]}
+        if args.btf_cielab:
+            for f in fronts.values():
+                for r in f:
+                    sweep.btf_cielab(m, r["config"])
+        ratios = {"old": [], "mlvq": []}
+        for f in ["old", "new", "mlvq"]:
+            for p in fronts[f]:
+                n = size_at(fronts["new"], p["de2000"]) if f != "new" else None
+                if n is not None:
+                    ratios[f].append(n / p["bytes"])
+                cielab = "%.2f" % p["btf_cielab"] if "btf_cielab" in p else "—"
+                print(f"| {m} | {f} | {p['config']} | {p['bytes']} | {p['de2000']:.3f} | {cielab} | "
+                      f"{'' if f == 'new' else '—' if n is None else int(n)} | "
+                      f"{'' if f == 'new' else ratio_text(n, p['bytes'])} |")
+        summary.append((m, ratios))
+    print()
+    print("| material | old front points compared | new ≤ ½ old at | new / old | mlvq points compared "
+          "| new smaller at | new / mlvq |")
+    print("|---|---|---|---|---|---|---|")
+    for m, ratios in summary:
+        o, v = ratios["old"], ratios["mlvq"]
+        span = lambda r: "—" if not r else "%.2f–%.2f" % (min(r), max(r))
+        print(f"| {m} | {len(o)} | {sum(x <= 0.5 for x in o)} | {span(o)} | {len(v)} | "
+              f"{sum(x < 1 for x in v)} | {span(v)} |")
+
+
+if __name__ == "__main__":
+    main()
