@@ -221,9 +221,10 @@ TEST(Fmf, CodedPrefixesDecodeWithMonotonicallyDecreasingError) {
             Package prefix = full;
             prefix.sections.resize(n);
             errors.push_back(rmse(source, *fmf_codec().open(prefix)));
-            if (errors.size() > 1)
+            if (errors.size() > 1) {
                 EXPECT_LE(errors.back(), errors[errors.size() - 2])
                     << "quality " << quality << ", " << n << " sections";
+            }
         }
         EXPECT_LT(errors[3], 0.5 * errors[0]) << quality;
         // Decoded to half floats: the evaluator keeps half rows, as for f16 packages.
