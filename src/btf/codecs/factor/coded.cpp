@@ -79,15 +79,18 @@ struct RangeReader {
     int64_t get(int stream) { return model.get(coder, stream); }
 };
 
+// The writers of the two formats: put(stream, v), then finish() for the payload.
 struct VarintWriter {
-    std::vector<uint8_t>& out;
+    std::vector<uint8_t> out;
     void put(int, int64_t v) { dct8::put_varint(out, v); }
+    std::vector<uint8_t> finish() { return std::move(out); }
 };
 
 struct RangeWriter {
-    range::Encoder& coder;
-    range::IntegerModel& model;
+    range::Encoder coder;
+    range::IntegerModel model{kStreams};
     void put(int stream, int64_t v) { model.put(coder, stream, v); }
+    std::vector<uint8_t> finish() { return coder.finish(); }
 };
 
 // Wrapping addition: a hostile difference must not overflow (the value is then checked for being
@@ -228,20 +231,17 @@ void put_head(std::vector<uint8_t>& out, uint8_t format, int a_prediction, bool 
     out.insert(out.end(), bytes, bytes + 8);
 }
 
-// Format 2: a's prediction the one that codes shortest (channel prediction for rgb rows; 1 for
-// planes), then the range-coded payload.
-std::vector<uint8_t> range_coded(ConstColumn a, ConstColumn b, Image image, float step_a,
-                                 float step_b) {
-    std::vector<int> predictions = {1, 2, 3, 4, 6};
-    if (a.n % 3 == 0) predictions.insert(predictions.begin(), 0);
+// A section in one format: a's prediction the one of `predictions` that codes shortest, the
+// head, then the payload.
+template <class Writer>
+std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& predictions, ConstColumn a,
+                              ConstColumn b, Image image, float step_a, float step_b) {
     size_t best_size = 0;
-    int best = 1;
+    int best = predictions.front();
     for (const int prediction : predictions) {
-        range::Encoder coder;
-        range::IntegerModel model(kStreams);
-        RangeWriter trial{coder, model};
+        Writer trial;
         put_plain(trial, a, step_a, prediction, kAngular);
-        const size_t size = coder.finish().size();
+        const size_t size = trial.finish().size();
         if (best_size == 0 || size < best_size) {
             best_size = size;
             best = prediction;
@@ -249,43 +249,15 @@ std::vector<uint8_t> range_coded(ConstColumn a, ConstColumn b, Image image, floa
     }
     const bool dct = is_image(image, b.n);
     std::vector<uint8_t> out;
-    put_head(out, kFormat, best, dct, step_a, step_b);
-    range::Encoder coder;
-    range::IntegerModel model(kStreams);
-    RangeWriter writer{coder, model};
+    put_head(out, format, best, dct, step_a, step_b);
+    Writer writer;
     put_plain(writer, a, step_a, best, kAngular);
     if (dct)
         put_image(writer, b, image, step_b);
     else
         put_plain(writer, b, step_b, 1, kTexels);
-    const std::vector<uint8_t> payload = coder.finish();
+    const std::vector<uint8_t> payload = writer.finish();
     out.insert(out.end(), payload.begin(), payload.end());
-    return out;
-}
-
-// Format 1: a's distance the one whose varints are shortest, then the varints.
-std::vector<uint8_t> varint_coded(ConstColumn a, ConstColumn b, Image image, float step_a,
-                                  float step_b) {
-    std::vector<uint8_t> best_a;
-    int best = 1;
-    for (const int stride : {1, 2, 3, 4, 6}) {
-        std::vector<uint8_t> trial;
-        VarintWriter writer{trial};
-        put_plain(writer, a, step_a, stride, kAngular);
-        if (best_a.empty() || trial.size() < best_a.size()) {
-            best_a.swap(trial);
-            best = stride;
-        }
-    }
-    const bool dct = is_image(image, b.n);
-    std::vector<uint8_t> out;
-    put_head(out, kVarintFormat, best, dct, step_a, step_b);
-    out.insert(out.end(), best_a.begin(), best_a.end());
-    VarintWriter writer{out};
-    if (dct)
-        put_image(writer, b, image, step_b);
-    else
-        put_plain(writer, b, step_b, 1, kTexels);
     return out;
 }
 
@@ -301,8 +273,13 @@ size_t zstd_size(const std::vector<uint8_t>& bytes) {
 // metal's angular factors are a fifth shorter as varints under zstd).
 void put_coded(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image, float step_a,
                float step_b) {
-    std::vector<uint8_t> ranged = range_coded(a, b, image, step_a, step_b);
-    std::vector<uint8_t> varints = varint_coded(a, b, image, step_a, step_b);
+    // Format 2 may predict rgb rows by channel (0); format 1 has distances only.
+    std::vector<int> predictions = {1, 2, 3, 4, 6};
+    const std::vector<uint8_t> varints =
+        coded_as<VarintWriter>(kVarintFormat, predictions, a, b, image, step_a, step_b);
+    if (a.n % 3 == 0) predictions.insert(predictions.begin(), 0);
+    const std::vector<uint8_t> ranged =
+        coded_as<RangeWriter>(kFormat, predictions, a, b, image, step_a, step_b);
     const std::vector<uint8_t>& best = zstd_size(varints) < ranged.size() ? varints : ranged;
     out.insert(out.end(), best.begin(), best.end());
 }
