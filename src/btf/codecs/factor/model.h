@@ -284,7 +284,7 @@ class FactorCodec : public Codec {
         double quality = -1;  ///< coded storage's quality (−1: another storage)
         uint64_t bytes = 0;   ///< the package file's size
         /// Mean CIEDE2000 of the package against the source on the sample the choice is made on
-        /// (64 images spread over the (view, light) pairs, 2048 texels of each).
+        /// (1024 images spread over the (view, light) pairs, 128 texels of each).
         double de2000 = 0;
     };
     /// encode() to a package file of at most `bytes` (as write_package writes it with `write`),
