@@ -77,8 +77,16 @@ void coded_components(const fs::path& out) {
             const int rows = 1 + rows_byte % 96;
             const int texels = (1 + (shape_byte & 15)) * (1 + ((shape_byte >> 4) & 7));
             std::vector<float> a(static_cast<size_t>(rows)), b(static_cast<size_t>(texels));
-            for (int i = 0; i < rows; ++i)
-                a[size_t(i)] = std::sin(0.2f * float(i / 3)) + 0.1f * float(i % 3);
+            // Laid out as fuzz/coded_component.cpp lays them out: 81 rows are 3 views × 9
+            // lights × 3 channels, smooth over both directions.
+            const int channels = rows % 3 == 0 ? 3 : 1;
+            const int lights = (rows / channels) % 9 == 0 ? 9 : (rows / channels) % 3 == 0 ? 3 : 1;
+            for (int i = 0; i < rows; ++i) {
+                const int pair = i / channels;
+                a[size_t(i)] =
+                    std::sin(0.2f * float(pair % lights)) * std::cos(0.3f * float(pair / lights)) +
+                    0.1f * float(i % channels);
+            }
             for (int t = 0; t < texels; ++t)
                 b[size_t(t)] = std::cos(0.3f * float(t)) * float(1 + t % 5);
             const coded::Image image =
@@ -87,8 +95,8 @@ void coded_components(const fs::path& out) {
                     : coded::Image{1 + (shape_byte & 15), 1 + ((shape_byte >> 4) & 7)};
             for (const double step : {0.01, 0.3}) {
                 std::vector<uint8_t> input = {rows_byte, shape_byte};
-                coded::put_component(input, {a.data(), rows, 1}, {b.data(), texels, 1}, image,
-                                     step);
+                coded::put_component(input, {a.data(), rows, 1}, {b.data(), texels, 1}, image, step,
+                                     nullptr, {lights, channels});
                 write_file(out / "coded_component" / ("component" + std::to_string(n++)), input);
             }
         }

@@ -10,6 +10,8 @@ import { floatToHalf, halfToFloat } from "./half";
 import { IntegerModel, RangeDecoder } from "./rangecoder";
 
 const RANGE_FORMAT = 2, VARINT_FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
+// a's prediction by neighbouring directions (format 2; coded.cpp's kNeighbours).
+const NEIGHBOURS = 128;
 // The integer streams (contexts) of format 2, as coded.cpp's Stream.
 const ANGULAR = 0, ANGULAR_CHROMA = 1, TEXELS = 2, DC = 3, BANDS = 4, STREAMS = BANDS + 9;
 const bandGroup = (k: number): number => {
@@ -24,11 +26,54 @@ interface Reader {
 
 const asHalf = (v: number): number => halfToFloat(floatToHalf(Math.fround(v)));
 
+/** The layout of a's rows: `channels` values per (view, light) pair, `lights` pairs per view. */
+export interface AngularRows {
+  lights: number;
+  channels: number;
+}
+
+const neighboursFit = (rows: AngularRows | undefined, n: number): rows is AngularRows =>
+  !!rows && rows.lights > 0 && (rows.channels === 1 || rows.channels === 3) && n % (rows.lights * rows.channels) === 0;
+
+// The value of plane j of a pair: 3 channels: the middle channel, then the outer ones' offsets
+// to it; otherwise the channel itself.
+function planeOf(codes: Float64Array, channels: number, pair: number, j: number): number {
+  const q = pair * channels;
+  if (channels !== 3) return codes[q + j];
+  return j === 0 ? codes[q + 1] : codes[q + (j === 1 ? 0 : 2)] - codes[q + 1];
+}
+
+// Each plane predicted by the floor of the mean of the previous light's and the previous view's
+// (the one there is at a view's first light or in the first view; 0 for the first pair).
+function neighbourPrediction(codes: Float64Array, rows: AngularRows, pair: number, j: number): number {
+  const left = pair % rows.lights > 0, up = pair >= rows.lights;
+  if (left && up) return Math.floor((planeOf(codes, rows.channels, pair - 1, j) + planeOf(codes, rows.channels, pair - rows.lights, j)) / 2);
+  if (left) return planeOf(codes, rows.channels, pair - 1, j);
+  if (up) return planeOf(codes, rows.channels, pair - rows.lights, j);
+  return 0;
+}
+
 // Differences at a distance, or (stride 0, rows of 3 channels) the middle channel's differences
-// along the rows, then the outer channels' offsets to it as differences along the rows.
-function plain(v: Reader, n: number, step: number, stride: number, stream: number): Float32Array {
+// along the rows, then the outer channels' offsets to it as differences along the rows, or
+// (NEIGHBOURS) planes predicted from the neighbouring directions.
+function plain(v: Reader, n: number, step: number, stride: number, stream: number, rows?: AngularRows): Float32Array {
   const codes = new Float64Array(n), out = new Float32Array(n);
-  if (stride === 0) {
+  if (stride === NEIGHBOURS) {
+    const { channels } = rows!;
+    const planes = [0, 0, 0];
+    for (let pair = 0; pair < n / channels; ++pair) {
+      for (let j = 0; j < channels; ++j)
+        planes[j] = v.get(channels === 3 && j > 0 ? ANGULAR_CHROMA : ANGULAR) + neighbourPrediction(codes, rows!, pair, j);
+      const q = pair * channels;
+      if (channels === 3) {
+        codes[q + 1] = planes[0];
+        codes[q] = planes[1] + planes[0];
+        codes[q + 2] = planes[2] + planes[0];
+      } else {
+        codes[q] = planes[0];
+      }
+    }
+  } else if (stride === 0) {
     for (let i = 0; i < n; i += 3) {
       const before = i >= 3;
       codes[i + 1] = v.get(ANGULAR) + (before ? codes[i - 2] : 0);
@@ -71,9 +116,9 @@ function image(v: Reader, width: number, height: number, step: number): Float32A
 }
 
 /**
- * Decodes a coded component section: `rows` values of a, `texels` values of b, b an image of
- * `width` × `height` texels where given (one cluster), else plain. Throws "section '<name>': …"
- * like the C++ reader for a damaged payload.
+ * Decodes a coded component section: `rows` values of a (laid out as `layout`), `texels` values
+ * of b, b an image of `width` × `height` texels where given (one cluster), else plain. Throws
+ * "section '<name>': …" like the C++ reader for a damaged payload.
  */
 export function decodeCodedComponent(
   data: Uint8Array,
@@ -81,6 +126,7 @@ export function decodeCodedComponent(
   texels: number,
   texelImage: { width: number; height: number } | null,
   name: string,
+  layout?: AngularRows,
 ): { a: Float32Array; b: Float32Array } {
   const what = `section '${name}'`;
   if (data.length < HEAD) throw new Error(`${what}: ${data.length} bytes, shorter than a coded component's head`);
@@ -90,9 +136,14 @@ export function decodeCodedComponent(
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   const steps = [view.getFloat32(4, true), view.getFloat32(8, true)];
   const isImage = !!texelImage && texelImage.width > 0 && texelImage.height > 0 && texelImage.width * texelImage.height === texels;
-  // Prediction 0 (channels) is format 2's, for rows of 3 channels.
-  if (aStride > MAX_STRIDE || (aStride === 0 && (format === VARINT_FORMAT || rows % 3 !== 0)))
+  // Predictions 0 (channels, for rows of 3 channels) and NEIGHBOURS (for the rows' layout) are
+  // format 2's.
+  if (aStride === NEIGHBOURS) {
+    if (format === VARINT_FORMAT) throw new Error(`${what}: prediction by neighbouring directions in format 1`);
+    if (!neighboursFit(layout, rows)) throw new Error(`${what}: prediction by neighbouring directions, but the factor's rows are not laid out by directions`);
+  } else if (aStride > MAX_STRIDE || (aStride === 0 && (format === VARINT_FORMAT || rows % 3 !== 0))) {
     throw new Error(`${what}: prediction distance ${aStride}`);
+  }
   if (kind !== PLAIN && kind !== DCT_IMAGE) throw new Error(`${what}: unknown texel coding ${kind}`);
   if (kind === DCT_IMAGE && !isImage) throw new Error(`${what}: DCT-coded texels, but the block's texels are not an image`);
   if (kind === PLAIN && (bStride < 1 || bStride > MAX_STRIDE)) throw new Error(`${what}: prediction distance ${bStride}`);
@@ -107,7 +158,7 @@ export function decodeCodedComponent(
     reader = { get: (stream) => model.get(coder, stream) };
     left = () => coder.remaining;
   }
-  const a = plain(reader, rows, steps[0], aStride, ANGULAR);
+  const a = plain(reader, rows, steps[0], aStride, ANGULAR, layout);
   const b = kind === DCT_IMAGE ? image(reader, texelImage!.width, texelImage!.height, steps[1]) : plain(reader, texels, steps[1], bStride, TEXELS);
   if (left() !== 0) throw new Error(`${what}: ${left()} bytes after the coded factors`);
   return { a, b };

@@ -432,7 +432,8 @@ export class FactorModel {
     const q = info.quantization;
     if (q === "coded") {
       const image = info.clusters === 1 ? { width: info.width >> block.level, height: info.height >> block.level } : null;
-      const { a, b } = decodeCodedComponent(data, rows, texels, image, name);
+      const lights = block.angular === 0 ? info.nL : info.angularLevels[block.angular - 1].lights.length;
+      const { a, b } = decodeCodedComponent(data, rows, texels, image, name, { lights, channels: info.channels });
       this.a[id.block].push(block.angular > 0 ? this.upsample(a, block.angular) : a);
       this.b[id.block].push(b);
       return id;

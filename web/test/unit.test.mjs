@@ -289,6 +289,25 @@ test("the range decoder and format 1 read the C++ tests' worked examples", () =>
   assert.throws(() => M.decodeCodedComponent(bytes, 4, 64, { width: 8, height: 8 }, "b0.k0"), /^Error: section 'b0\.k0': prediction distance 0$/);
 });
 
+// coded_test.cpp's worked example of the prediction by neighbouring directions (floor of the mean).
+test("the viewer reads the prediction by neighbouring directions as the C++ reader does", () => {
+  const bytes = new Uint8Array([
+    0x02, 0x80, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3f, 0x00, 0x00, 0x80, 0x3e, 0x00, 0xd4, 0xac, 0x12, 0x69, 0x81, 0xa0, 0x40, 0x00,
+  ]);
+  const { a, b } = M.decodeCodedComponent(bytes, 6, 1, null, "b0.k0", { lights: 3, channels: 1 });
+  assert.deepEqual(Array.from(a), [-0.5, 0.5, 2, -1, 2.5, 3]);
+  assert.deepEqual(Array.from(b), [0.75]);
+  const layoutError = /^Error: section 'b0\.k0': prediction by neighbouring directions, but the factor's rows are not laid out by directions$/;
+  assert.throws(() => M.decodeCodedComponent(bytes, 6, 1, null, "b0.k0"), layoutError);
+  assert.throws(() => M.decodeCodedComponent(bytes, 6, 1, null, "b0.k0", { lights: 4, channels: 1 }), layoutError);
+  const format1 = bytes.slice();
+  format1[0] = 1;
+  assert.throws(
+    () => M.decodeCodedComponent(format1, 6, 1, null, "b0.k0", { lights: 3, channels: 1 }),
+    /^Error: section 'b0\.k0': prediction by neighbouring directions in format 1$/,
+  );
+});
+
 test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {
   const { info, tables } = decode(fx.packages.woven_fabric);
   for (let i = 0; i < info.nL; ++i) {

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 #include <zstd.h>
+#include <Eigen/Core>
 
 #include "btf/util/dct8.h"
 #include "btf/util/error.h"
@@ -99,14 +100,64 @@ int64_t plus(int64_t a, int64_t b) {
     return int64_t(uint64_t(a) + uint64_t(b));
 }
 
+// Prediction kNeighbours (format 2, a's rows laid out as AngularRows): the values of each
+// (view, light) pair as planes (3 channels: the middle channel, then the outer ones' offsets to
+// it; otherwise each channel), each predicted by the floor of the mean of the same plane at the
+// previous light of the view and at the same light of the previous view (the one of them there
+// is, at a view's first light or in the first view; 0 for the first pair): the angular factors
+// are smooth over both directions.
+constexpr int kNeighbours = 128;
+
+int64_t minus(int64_t a, int64_t b) {
+    return int64_t(uint64_t(a) - uint64_t(b));
+}
+
+int64_t floor_mean(int64_t x, int64_t y) {
+    return (x >> 1) + (y >> 1) + (x & y & 1);
+}
+
+bool neighbours_fit(AngularRows rows, int64_t n) {
+    return rows.lights > 0 && (rows.channels == 1 || rows.channels == 3) &&
+           n % (rows.lights * rows.channels) == 0;
+}
+
+int64_t plane_of(const int64_t* codes, int channels, int64_t pair, int j) {
+    const int64_t* q = codes + pair * channels;
+    if (channels != 3) return q[j];
+    return j == 0 ? q[1] : minus(q[j == 1 ? 0 : 2], q[1]);
+}
+
+int64_t neighbour_prediction(const int64_t* codes, AngularRows rows, int64_t pair, int j) {
+    const bool left = pair % rows.lights > 0, up = pair >= rows.lights;
+    if (left && up)
+        return floor_mean(plane_of(codes, rows.channels, pair - 1, j),
+                          plane_of(codes, rows.channels, pair - rows.lights, j));
+    if (left) return plane_of(codes, rows.channels, pair - 1, j);
+    if (up) return plane_of(codes, rows.channels, pair - rows.lights, j);
+    return 0;
+}
+
+int plane_stream(int channels, int j) {
+    return channels == 3 && j > 0 ? kAngularChroma : kAngular;
+}
+
 // Uniform rounding, as differences to the code `stride` values before; stride 0 (3 channels per
 // row): the middle channel as differences along the rows, the outer ones as differences of
-// their offsets to the middle one, written middle first.
+// their offsets to the middle one, written middle first; kNeighbours: see above.
 template <class Writer>
-void put_plain(Writer& out, ConstColumn c, float step, int stride, int stream) {
+void put_plain(Writer& out, ConstColumn c, float step, int stride, int stream,
+               AngularRows rows = {}) {
     std::vector<int64_t> codes(size_t(c.n));
     for (int64_t i = 0; i < c.n; ++i)
         codes[size_t(i)] = rounded(double(c.data[i * c.stride]) / step);
+    if (stride == kNeighbours) {
+        for (int64_t pair = 0; pair < c.n / rows.channels; ++pair)
+            for (int j = 0; j < rows.channels; ++j)
+                out.put(plane_stream(rows.channels, j),
+                        minus(plane_of(codes.data(), rows.channels, pair, j),
+                              neighbour_prediction(codes.data(), rows, pair, j)));
+        return;
+    }
     if (stride == 0) {
         for (int64_t i = 0; i < c.n; i += 3) {
             const int64_t* q = &codes[size_t(i)];
@@ -122,9 +173,24 @@ void put_plain(Writer& out, ConstColumn c, float step, int stride, int stream) {
 }
 
 template <class Reader>
-void get_plain(Reader& in, Column c, float step, int stride, int stream) {
+void get_plain(Reader& in, Column c, float step, int stride, int stream, AngularRows rows = {}) {
     std::vector<int64_t> codes(size_t(c.n));
-    if (stride == 0) {
+    if (stride == kNeighbours) {
+        int64_t planes[3];
+        for (int64_t pair = 0; pair < c.n / rows.channels; ++pair) {
+            for (int j = 0; j < rows.channels; ++j)
+                planes[j] = plus(in.get(plane_stream(rows.channels, j)),
+                                 neighbour_prediction(codes.data(), rows, pair, j));
+            int64_t* q = &codes[size_t(pair * rows.channels)];
+            if (rows.channels == 3) {
+                q[1] = planes[0];
+                q[0] = plus(planes[1], q[1]);
+                q[2] = plus(planes[2], q[1]);
+            } else {
+                q[0] = planes[0];
+            }
+        }
+    } else if (stride == 0) {
         for (int64_t i = 0; i < c.n; i += 3) {
             int64_t* q = &codes[size_t(i)];
             const int64_t* before = i >= 3 ? q - 3 : nullptr;
@@ -235,12 +301,13 @@ void put_head(std::vector<uint8_t>& out, uint8_t format, int a_prediction, bool 
 // head, then the payload.
 template <class Writer>
 std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& predictions, ConstColumn a,
-                              ConstColumn b, Image image, float step_a, float step_b) {
+                              ConstColumn b, Image image, float step_a, float step_b,
+                              AngularRows rows) {
     size_t best_size = 0;
     int best = predictions.front();
     for (const int prediction : predictions) {
         Writer trial;
-        put_plain(trial, a, step_a, prediction, kAngular);
+        put_plain(trial, a, step_a, prediction, kAngular, rows);
         const size_t size = trial.finish().size();
         if (best_size == 0 || size < best_size) {
             best_size = size;
@@ -251,7 +318,7 @@ std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& prediction
     std::vector<uint8_t> out;
     put_head(out, format, best, dct, step_a, step_b);
     Writer writer;
-    put_plain(writer, a, step_a, best, kAngular);
+    put_plain(writer, a, step_a, best, kAngular, rows);
     if (dct)
         put_image(writer, b, image, step_b);
     else
@@ -272,16 +339,36 @@ size_t zstd_size(const std::vector<uint8_t>& bytes) {
 // adaptive models miss the repeated runs that zstd's matches find in some factors: brushed
 // metal's angular factors are a fifth shorter as varints under zstd).
 void put_coded(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image, float step_a,
-               float step_b) {
-    // Format 2 may predict rgb rows by channel (0); format 1 has distances only.
+               float step_b, AngularRows rows) {
+    // Format 2 may predict rgb rows by channel (0) and by neighbouring directions; format 1 has
+    // distances only.
     std::vector<int> predictions = {1, 2, 3, 4, 6};
     const std::vector<uint8_t> varints =
-        coded_as<VarintWriter>(kVarintFormat, predictions, a, b, image, step_a, step_b);
+        coded_as<VarintWriter>(kVarintFormat, predictions, a, b, image, step_a, step_b, rows);
     if (a.n % 3 == 0) predictions.insert(predictions.begin(), 0);
+    if (neighbours_fit(rows, a.n)) predictions.push_back(kNeighbours);
     const std::vector<uint8_t> ranged =
-        coded_as<RangeWriter>(kFormat, predictions, a, b, image, step_a, step_b);
+        coded_as<RangeWriter>(kFormat, predictions, a, b, image, step_a, step_b, rows);
     const std::vector<uint8_t>& best = zstd_size(varints) < ranged.size() ? varints : ranged;
     out.insert(out.end(), best.begin(), best.end());
+}
+
+// The values a stands for: itself, or at an angular level its up-sampling U a.
+std::vector<float> upsampled(const std::vector<float>& a, const AngularResampler* up) {
+    if (!up) return a;
+    const Eigen::VectorXd full = up->upsample(
+        Eigen::Map<const Eigen::VectorXf>(a.data(), Eigen::Index(a.size())).cast<double>().eval());
+    std::vector<float> out(size_t(full.size()));
+    for (Eigen::Index i = 0; i < full.size(); ++i) out[size_t(i)] = float(full(i));
+    return out;
+}
+
+// The mean weight of a stored a value in the values it stands for: ‖U‖²_F over U's columns (1
+// without an angular level).
+double stored_weight(const AngularResampler* up) {
+    if (!up) return 1.0;
+    return up->up_views().squaredNorm() * up->up_lights().squaredNorm() /
+           double(up->up_views().cols() * up->up_lights().cols());
 }
 
 double dot(ConstColumn x, const std::vector<float>& y) {
@@ -299,26 +386,36 @@ double squared(const std::vector<float>& x) {
 }  // namespace
 
 void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image,
-                   double step) {
-    const float step_a = side_step(step, rms(b)), step_b = side_step(step, rms(a));
+                   double step, const AngularResampler* up, AngularRows rows) {
+    std::vector<float> a_values(size_t(a.n));
+    for (int64_t i = 0; i < a.n; ++i) a_values[size_t(i)] = a.data[i * a.stride];
+    const std::vector<float> a_full = upsampled(a_values, up);
+    const ConstColumn full{a_full.data(), int64_t(a_full.size()), 1};
+    const float step_a = side_step(kAngularStepScale * step, rms(b) * std::sqrt(stored_weight(up)));
+    const float step_b = side_step(step, rms(full));
     std::vector<uint8_t> coded;
-    put_coded(coded, a, b, image, step_a, step_b);
+    put_coded(coded, a, b, image, step_a, step_b, rows);
     // The component as decoded, â b̂ᵀ, lowers the error of the values it is added to only if
     // ‖a bᵀ − â b̂ᵀ‖² < ‖a bᵀ‖², i.e. 2 (a·â)(b·b̂) > ‖â‖²‖b̂‖² (the rest of the residual is
     // orthogonal to a); otherwise it is stored as zeros, so that a longer prefix is never worse.
+    // At an angular level both a are up-sampled: U â is in U's range, to which the original full
+    // a differs from U a by an orthogonal residual (a was fitted by least squares), so a·U â =
+    // U a · U â.
     std::vector<float> a_hat(size_t(a.n)), b_hat(size_t(b.n));
     get_component(coded.data(), coded.size(), {a_hat.data(), a.n, 1}, {b_hat.data(), b.n, 1}, image,
-                  "(encoding)");
-    if (!(2 * dot(a, a_hat) * dot(b, b_hat) > squared(a_hat) * squared(b_hat))) {
+                  "(encoding)", rows);
+    const std::vector<float> a_hat_full = upsampled(a_hat, up);
+    if (!(2 * dot(full, a_hat_full) * dot(b, b_hat) > squared(a_hat_full) * squared(b_hat))) {
         const std::vector<float> zero_a(size_t(a.n), 0.0f), zero_b(size_t(b.n), 0.0f);
         coded.clear();
-        put_coded(coded, {zero_a.data(), a.n, 1}, {zero_b.data(), b.n, 1}, image, step_a, step_b);
+        put_coded(coded, {zero_a.data(), a.n, 1}, {zero_b.data(), b.n, 1}, image, step_a, step_b,
+                  rows);
     }
     out.insert(out.end(), coded.begin(), coded.end());
 }
 
 void get_component(const uint8_t* data, size_t size, Column a, Column b, Image image,
-                   std::string_view name) {
+                   std::string_view name, AngularRows rows) {
     const std::string what = fmt::format("section '{}'", name);
     if (size < kHead) fail("{}: {} bytes, shorter than a coded component's head", what, size);
     const int format = data[0];
@@ -327,9 +424,20 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
     const int a_stride = data[1], kind = data[2], b_stride = data[3];
     float steps[2];
     std::memcpy(steps, data + 4, 8);
-    // Prediction 0 (channels) is format 2's, for rows of 3 channels.
-    if (a_stride > kMaxStride || (a_stride == 0 && (format == kVarintFormat || a.n % 3 != 0)))
+    // Predictions 0 (channels, for rows of 3 channels) and kNeighbours (for the rows' layout)
+    // are format 2's.
+    if (a_stride == kNeighbours) {
+        if (format == kVarintFormat)
+            fail("{}: prediction by neighbouring directions in format 1", what);
+        if (!neighbours_fit(rows, a.n))
+            fail(
+                "{}: prediction by neighbouring directions, but the factor's rows are not laid "
+                "out by directions",
+                what);
+    } else if (a_stride > kMaxStride ||
+               (a_stride == 0 && (format == kVarintFormat || a.n % 3 != 0))) {
         fail("{}: prediction distance {}", what, a_stride);
+    }
     if (kind != kPlain && kind != kDctImage) fail("{}: unknown texel coding {}", what, kind);
     if (kind == kDctImage && !is_image(image, b.n))
         fail("{}: DCT-coded texels, but the block's texels are not an image", what);
@@ -338,7 +446,7 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
     for (const float s : steps)
         if (!(s > 0) || !std::isfinite(s)) fail("{}: quantization step {}", what, s);
     auto factors = [&](auto& in) {
-        get_plain(in, a, steps[0], a_stride, kAngular);
+        get_plain(in, a, steps[0], a_stride, kAngular, rows);
         if (kind == kDctImage)
             get_image(in, b, image, steps[1]);
         else

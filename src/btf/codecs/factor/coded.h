@@ -3,17 +3,20 @@
 /// and its texel factor b quantized with steps chosen from one value-domain step Δ, and
 /// entropy-coded along their structure (docs/formats.md, "Coded components").
 ///
-/// The steps are a reverse water-filling: component k's a is quantized with Δ / rms(b_k) and
-/// its b with Δ / rms(a_k), so that either side's rounding adds the same error to the values
-/// (Δ²/12 per sample where a coefficient is not zeroed) whatever the component's energy; the
-/// components and coefficients too weak for Δ are left out by the quantizer (they cost one
-/// short code each). Δ comes from `quality` Q ∈ [0, 100]: Δ = 2^(−Q/10) · the RMS of the
-/// model's values, so each 10 more halves the step.
+/// The steps are a reverse water-filling: component k's b is quantized with Δ / rms(a_k) and its
+/// a with κ Δ / rms(b_k) (kAngularStepScale), so that each side's rounding adds an error to the
+/// values that does not depend on the component's energy (Δ²/12 per sample from b, κ² times that
+/// from a, where a coefficient is not zeroed); the components and coefficients too weak for Δ are
+/// left out by the quantizer (they cost one short code each). Δ comes from `quality` Q ∈ [0,
+/// 100]: Δ = 2^(−Q/10) · the RMS of the model's values, so each 10 more halves the step.
 ///
 /// a: uniform rounding, coded as differences to the value `stride` rows before (the same
-/// channel of the previous light) or, for rows of 3 channels, by channel prediction (the middle
+/// channel of the previous light), or for rows of 3 channels by channel prediction (the middle
 /// channel as differences along the rows, the outer ones as differences of their offsets to the
-/// middle one: a component's colour changes slowly over the directions). b: where b is an image (W
+/// middle one: a component's colour changes slowly over the directions), or where the rows'
+/// layout over views and lights is known (AngularRows) by neighbouring directions (the same
+/// planes, each predicted by the mean of the previous light's and the previous view's: a is
+/// smooth over both). b: where b is an image (W
 /// × H texels of a level, one cluster), 8 × 8 DCT blocks of the image extended periodically to a
 /// multiple of 8 (the evaluator wraps around the edges), quantized with a dead zone (|c|/step +
 /// 1/3, rounded down: coefficients under 2/3 of a step become 0) and written band by band (every
@@ -29,6 +32,8 @@
 #include <cstdint>
 #include <string_view>
 #include <vector>
+
+#include "btf/codecs/factor/angular_levels.h"
 
 namespace btf::factor::coded {
 
@@ -54,16 +59,36 @@ struct Image {
     int width = 0, height = 0;
 };
 
+/// The layout of a's rows: `channels` values for each (view, light) pair, `lights` pairs per view
+/// (rows (view · lights + light) · channels + channel). Unknown (0): a is predicted along its rows
+/// only.
+struct AngularRows {
+    int64_t lights = 0;
+    int channels = 0;
+};
+
+/// a's step is this fraction of the one that would make its rounding add as much squared error as
+/// b's (Δ / rms(b)): an error in a is a colour error (a holds each component's colour over the
+/// directions; b is one number per texel) and shifts whole images alike, which the mean CIEDE2000
+/// rates above b's. A compromise measured at equal package size on four materials against 1, 0.5
+/// and 0.25 (docs/benchmarks.md, "Rate–distortion with coded factors"): no single value is best
+/// on all of them.
+constexpr double kAngularStepScale = 0.35;
+
 /// Value-domain step for `quality` and the RMS of the values (see above).
 double value_step(double quality, double rms);
 
-/// Appends the coded section of one component.
+/// Appends the coded section of one component. With `up` (a component of an angular level), a
+/// holds the level's values, which count as their up-sampling U a: b's step is Δ over the RMS of
+/// U a, and a's is Δ / rms(b) over the square root of the mean weight of a stored value in U
+/// a (‖U‖²_F over the stored values; about the full directions per stored one), so that either
+/// side's rounding still adds about Δ²/12 per full value.
 void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image image,
-                   double step);
-/// Decodes a section written by put_component into a and b (whose n and image must be those it
-/// was written with); throws btf::Error "section '<name>': …" for a damaged or foreign payload.
+                   double step, const AngularResampler* up = nullptr, AngularRows rows = {});
+/// Decodes a section written by put_component into a and b (whose n, image and rows must be those
+/// it was written with); throws btf::Error "section '<name>': …" for a damaged or foreign payload.
 void get_component(const uint8_t* data, size_t size, Column a, Column b, Image image,
-                   std::string_view name);
+                   std::string_view name, AngularRows rows = {});
 
 /// The largest error of a decoded b value: every one of the 64 coefficients of its block off by
 /// at most 2/3 of a step (the dead zone), each weighted by at most 1/4 (the largest value of a

@@ -1,5 +1,6 @@
 #include "btf/codecs/factor/coded.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -35,15 +36,47 @@ float step_of(const std::vector<uint8_t>& bytes, int side) {
     return s;
 }
 
-// Worked by hand: b a constant 2 over one 8 × 8 block, a = (1, 1.5, 2.5, 3), Δ = 1.
-//   a's step Δ / rms(b) = 0.5, so codes 2, 3, 5, 6; the differences 2, 1, 2, 1 (distance 1: 4
+const std::vector<float> kWorkedA = {1.0f, 1.5f, 2.5f, 3.0f}, kWorkedB(64, 2.0f);
+
+// Worked by hand: b a constant 2 over one 8 × 8 block, a = (1, 1.5, 2.5, 3), Δ = 1 / κ
+// (kAngularStepScale).
+//   a's step κ Δ / rms(b) = 0.5, so codes 2, 3, 5, 6; the differences 2, 1, 2, 1 (distance 1: 4
 //   rows allow no channel prediction, and the smallest values code shortest).
-//   b's step Δ / rms(a) = 1 / √4.625; the block's DCT is 8 · 2 = 16 at DC and 0 elsewhere, so
-//   DC codes to ⌊16 √4.625 + 1/3⌋ = 34, and the 63 other bands are zeros.
+//   b's step Δ / rms(a) = 1 / (κ √4.625); the block's DCT is 8 · 2 = 16 at DC and 0 elsewhere, so
+//   DC codes to ⌊16 κ √4.625 + 1/3⌋ = ⌊12.04 + 1/3⌋ = 12, and the 63 other bands are zeros.
 // The head is format 2, distance 1, DCT texels, 0, then the two steps; the payload is those
 // integers through the range coder's model in their streams (a: 0; DC: 3; band k: 4 + its
 // zig-zag diagonal), whose own bytes util/range_coder_test.cpp pins.
-const std::vector<float> kWorkedA = {1.0f, 1.5f, 2.5f, 3.0f}, kWorkedB(64, 2.0f);
+TEST(CodedComponent, GoldenBytesOfAWorkedExample) {
+    const double delta = 1 / kAngularStepScale;
+    ASSERT_EQ(kAngularStepScale, 0.35) << "the example's DC code below is worked out for κ = 0.35";
+    const std::vector<uint8_t> bytes = encode(kWorkedA, kWorkedB, {8, 8}, delta);
+    const float steps[2] = {0.5f, float(delta / std::sqrt(4.625))};
+    std::vector<uint8_t> expected = {2, 1, 1, 0};
+    const auto* s = reinterpret_cast<const uint8_t*>(steps);
+    expected.insert(expected.end(), s, s + 8);
+    range::Encoder coder;
+    range::IntegerModel model(13);
+    for (const int v : {2, 1, 2, 1}) model.put(coder, 0, v);
+    model.put(coder, 3, 12);
+    const int diagonal_start[8] = {1, 3, 6, 10, 15, 21, 28, 36};
+    for (int k = 1; k < 64; ++k) {
+        int group = 0;
+        while (group < 8 && k >= diagonal_start[group]) ++group;
+        model.put(coder, 4 + group, 0);
+    }
+    const std::vector<uint8_t> payload = coder.finish();
+    expected.insert(expected.end(), payload.begin(), payload.end());
+    EXPECT_EQ(bytes, expected);
+    std::vector<float> a2(4), b2(64);
+    decode(bytes, a2, b2, {8, 8});
+    EXPECT_EQ(a2, kWorkedA);
+    const double dc = 12 * steps[1] / 8;  // decoded values are half floats
+    for (const float v : b2) EXPECT_NEAR(v, dc, std::ldexp(dc, -11));
+}
+
+// The example as the first coded packages wrote it (a's step Δ / rms(b), Δ = 1: a's steps 0.5, b's
+// 1 / √4.625, DC ⌊16 √4.625 + 1/3⌋ = 34), for the readers' tests below.
 const float kWorkedSteps[2] = {0.5f, float(1.0 / std::sqrt(4.625))};
 
 std::vector<uint8_t> worked_head(uint8_t format) {
@@ -56,39 +89,96 @@ std::vector<uint8_t> worked_head(uint8_t format) {
 void expect_worked_values(const std::vector<uint8_t>& bytes) {
     std::vector<float> a2(4), b2(64);
     decode(bytes, a2, b2, {8, 8});
-    EXPECT_EQ(a2, (std::vector<float>{1.0f, 1.5f, 2.5f, 3.0f}));
+    EXPECT_EQ(a2, kWorkedA);
     // Decoded values are half floats.
     const double dc = 34 * kWorkedSteps[1] / 8;
     for (const float v : b2) EXPECT_NEAR(v, dc, std::ldexp(dc, -11));
 }
 
-TEST(CodedComponent, GoldenBytesOfAWorkedExample) {
-    const std::vector<uint8_t> bytes = encode(kWorkedA, kWorkedB, {8, 8}, 1.0);
-    std::vector<uint8_t> expected = worked_head(2);
-    range::Encoder coder;
-    range::IntegerModel model(13);
-    for (const int v : {2, 1, 2, 1}) model.put(coder, 0, v);
-    model.put(coder, 3, 34);
-    const int diagonal_start[8] = {1, 3, 6, 10, 15, 21, 28, 36};
-    for (int k = 1; k < 64; ++k) {
-        int group = 0;
-        while (group < 8 && k >= diagonal_start[group]) ++group;
-        model.put(coder, 4 + group, 0);
-    }
-    const std::vector<uint8_t> payload = coder.finish();
-    expected.insert(expected.end(), payload.begin(), payload.end());
-    EXPECT_EQ(bytes, expected);
-    expect_worked_values(bytes);
-}
-
-// Format 1 (varints for the container's zstd), still read: the same example as the first coded
-// packages wrote it: the differences 2, 1, 2, 1 as the zig-zag varints 4, 2, 4, 2, DC 34 as 68 =
-// 0x44, then 63 zeros.
+// Format 1 (varints for the container's zstd), still read: the differences 2, 1, 2, 1 as the
+// zig-zag varints 4, 2, 4, 2, DC 34 as 68 = 0x44, then 63 zeros.
 TEST(CodedComponent, FormatOneIsStillRead) {
     std::vector<uint8_t> bytes = worked_head(1);
     for (const uint8_t v : {4, 2, 4, 2, 0x44}) bytes.push_back(v);
     bytes.resize(bytes.size() + 63, 0);
     expect_worked_values(bytes);
+}
+
+// Prediction by neighbouring directions, worked by hand: a of 2 views × 3 lights × 1 channel with
+// step 0.5 and codes (−1, 1, 4; −2, 5, 6); b one plain value, code 3 at step 0.25. Each code is
+// predicted by the floor of the mean of the previous light's and the previous view's, or the one
+// of them there is: −1 (first pair), 1 − (−1) = 2, 4 − 1 = 3, −2 − (−1) = −1 (first light: the
+// view above), 5 − ⌊(−2 + 1) / 2⌋ = 5 − (−1) = 6 (the floor, not the truncation), 6 − ⌊(5 + 4)
+// / 2⌋ = 2. The head is format 2, prediction 128, plain texels at distance 1, the steps; a's
+// differences go to stream 0, b's to stream 2. web/test/unit.test.mjs reads the same bytes.
+const std::vector<uint8_t> kNeighbourExample = {
+    0x02, 0x80, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3f, 0x00, 0x00, 0x80, 0x3e,
+};
+
+TEST(CodedComponent, PredictionByNeighbouringDirectionsWorkedExample) {
+    std::vector<uint8_t> bytes = kNeighbourExample;
+    range::Encoder coder;
+    range::IntegerModel model(13);
+    for (const int v : {-1, 2, 3, -1, 6, 2}) model.put(coder, 0, v);
+    model.put(coder, 2, 3);
+    const std::vector<uint8_t> payload = coder.finish();
+    bytes.insert(bytes.end(), payload.begin(), payload.end());
+    std::string hex;
+    for (const uint8_t v : payload) hex += fmt::format("{:02x} ", v);
+    EXPECT_EQ(hex, "00 d4 ac 12 69 81 a0 40 00 ");  // the bytes the viewer's test reads
+    std::vector<float> a(6), b(1);
+    get_component(bytes.data(), bytes.size(), {a.data(), 6, 1}, {b.data(), 1, 1}, {}, "b0.k0",
+                  {3, 1});
+    EXPECT_EQ(a, (std::vector<float>{-0.5f, 0.5f, 2.0f, -1.0f, 2.5f, 3.0f}));
+    EXPECT_EQ(b, std::vector<float>{0.75f});
+    // The prediction needs the rows' layout, and format 2.
+    EXPECT_EQ(test::error_of([&] {
+                  get_component(bytes.data(), bytes.size(), {a.data(), 6, 1}, {b.data(), 1, 1}, {},
+                                "b0.k0");
+              }),
+              "section 'b0.k0': prediction by neighbouring directions, but the factor's rows are "
+              "not laid out by directions");
+    EXPECT_EQ(test::error_of([&] {
+                  get_component(bytes.data(), bytes.size(), {a.data(), 6, 1}, {b.data(), 1, 1}, {},
+                                "b0.k0", {4, 1});
+              }),
+              "section 'b0.k0': prediction by neighbouring directions, but the factor's rows are "
+              "not laid out by directions");
+    bytes[0] = 1;
+    EXPECT_EQ(test::error_of([&] {
+                  get_component(bytes.data(), bytes.size(), {a.data(), 6, 1}, {b.data(), 1, 1}, {},
+                                "b0.k0", {3, 1});
+              }),
+              "section 'b0.k0': prediction by neighbouring directions in format 1");
+}
+
+// An angular factor smooth over views and lights (rgb, 9 × 9 directions) is coded by its
+// neighbouring directions when the layout is known, shorter than along the rows alone, and
+// decodes within half a step.
+TEST(CodedComponent, SmoothAngularFactorsArePredictedByNeighbours) {
+    const int views = 9, lights = 9;
+    std::vector<float> a(size_t(views * lights * 3)), b(64);
+    for (int v = 0; v < views; ++v)
+        for (int l = 0; l < lights; ++l)
+            for (int c = 0; c < 3; ++c)
+                a[size_t((v * lights + l) * 3 + c)] = std::sin(0.4f * float(v)) *
+                                                      std::cos(0.3f * float(l)) *
+                                                      (1.0f + 0.2f * float(c));
+    for (int t = 0; t < 64; ++t) b[size_t(t)] = 1.0f + 0.1f * std::sin(float(t));
+    std::vector<uint8_t> by_rows, by_directions;
+    put_component(by_rows, {a.data(), int64_t(a.size()), 1}, {b.data(), 64, 1}, {8, 8}, 0.002);
+    put_component(by_directions, {a.data(), int64_t(a.size()), 1}, {b.data(), 64, 1}, {8, 8}, 0.002,
+                  nullptr, {lights, 3});
+    ASSERT_EQ(by_directions[1], 128);
+    EXPECT_NE(by_rows[1], 128);
+    EXPECT_LT(by_directions.size(), by_rows.size());
+    std::vector<float> a2(a.size()), b2(64);
+    get_component(by_directions.data(), by_directions.size(), {a2.data(), int64_t(a2.size()), 1},
+                  {b2.data(), 64, 1}, {8, 8}, "b0.k0", {lights, 3});
+    const double sa = step_of(by_directions, 0);
+    for (size_t i = 0; i < a.size(); ++i)
+        EXPECT_LE(std::abs(a2[i] - a[i]), 0.5 * sa * 1.0001 + std::ldexp(std::abs(a2[i]), -11))
+            << i;
 }
 
 // Random factors: a within half its step of the original, b (an image, also one whose sides are

@@ -407,6 +407,14 @@ coded::Image texel_image(const Model& model, const Block& b) {
     return {model.level_width(b.level), model.level_height(b.level)};
 }
 
+// The layout of a block's a rows for coded storage's prediction by neighbouring directions.
+coded::AngularRows angular_rows(const Model& model, const Block& b) {
+    const int64_t lights = b.angular > 0
+                               ? int64_t(model.angular_levels[size_t(b.angular - 1)].lights.size())
+                               : int64_t(model.sampling.num_lights());
+    return {lights, model.colour.channels()};
+}
+
 std::string component_name(int block, int k) {
     return fmt::format("b{}.k{}", block, k);
 }
@@ -526,6 +534,10 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
         int block, k;
     };
     std::vector<Entry> order;
+    std::vector<AngularResampler> resamplers;  // coded storage weighs a by its up-sampling
+    if (quantization == Quantization::kCoded)
+        for (const AngularLevel& level : model.angular_levels)
+            resamplers.emplace_back(model.sampling, level, model.colour.channels());
     for (size_t i = 0; i < model.blocks.size(); ++i) {
         float key = INFINITY;
         for (int k = 0; k < model.blocks[i].components(); ++k) {
@@ -544,7 +556,8 @@ Package to_package(const Model& model, std::string_view codec, const nlohmann::j
         if (quantization == Quantization::kCoded) {
             coded::put_component(s.data, {b.a.data() + e.k, b.a.rows(), b.a.cols()},
                                  {b.b.data() + e.k, b.b.rows(), b.b.cols()}, texel_image(model, b),
-                                 step);
+                                 step, b.angular > 0 ? &resamplers[size_t(b.angular - 1)] : nullptr,
+                                 angular_rows(model, b));
             package.sections.push_back(std::move(s));
             continue;
         }
@@ -708,9 +721,10 @@ Model from_package(const Package& package) {
             for (int c = 0; c < k; ++c) {
                 const PackageSection& s = *sections[i][c];
                 if (q == Quantization::kCoded) {
-                    coded::get_component(
-                        s.data.data(), s.data.size(), {b.a.data() + c, b.a.rows(), k},
-                        {b.b.data() + c, b.b.rows(), k}, texel_image(model, b), s.name);
+                    coded::get_component(s.data.data(), s.data.size(),
+                                         {b.a.data() + c, b.a.rows(), k},
+                                         {b.b.data() + c, b.b.rows(), k}, texel_image(model, b),
+                                         s.name, angular_rows(model, b));
                     continue;
                 }
                 const uint8_t* in = s.data.data();
