@@ -10,10 +10,13 @@ import { floatToHalf, halfToFloat } from "./half";
 import { IntegerModel, RangeDecoder } from "./rangecoder";
 
 const RANGE_FORMAT = 2, VARINT_FORMAT = 1, PLAIN = 0, DCT_IMAGE = 1, HEAD = 12, MAX_STRIDE = 64;
-// a's prediction by neighbouring directions (format 2; coded.cpp's kNeighbours).
-const NEIGHBOURS = 128;
-// The integer streams (contexts) of format 2, as coded.cpp's Stream.
-const ANGULAR = 0, ANGULAR_CHROMA = 1, TEXELS = 2, DC = 3, BANDS = 4, STREAMS = BANDS + 9;
+// a's prediction by neighbouring directions, and a's planes as DCT-coded images of views × lights
+// (format 2; coded.cpp's kNeighbours and kDctPlanes).
+const NEIGHBOURS = 128, DCT_PLANES = 129;
+// The integer streams (contexts) of format 2, as coded.cpp's Stream: an image's DC differences in
+// DC (b) or ANGULAR_DC (a's images of directions), its band k in that stream + 1 + the band's
+// group.
+const ANGULAR = 0, ANGULAR_CHROMA = 1, TEXELS = 2, DC = 3, ANGULAR_DC = 13, STREAMS = ANGULAR_DC + 10;
 const bandGroup = (k: number): number => {
   let group = 1;
   for (const start of [3, 6, 10, 15, 21, 28, 36]) if (k >= start) ++group;
@@ -87,12 +90,12 @@ function plain(v: Reader, n: number, step: number, stride: number, stream: numbe
   return out;
 }
 
-function image(v: Reader, width: number, height: number, step: number): Float32Array {
+function image(v: Reader, width: number, height: number, step: number, dc = DC): Float32Array {
   const bw = Math.ceil(width / 8), bh = Math.ceil(height / 8), blocks = bw * bh;
   const codes = new Float64Array(blocks * 64);
   for (let k = 0; k < 64; ++k) {
     let previous = 0;
-    const stream = k === 0 ? DC : BANDS + bandGroup(k);
+    const stream = k === 0 ? dc : dc + 1 + bandGroup(k);
     for (let b = 0; b < blocks; ++b) {
       const d = v.get(stream);
       const value = k === 0 ? d + previous : d;
@@ -112,6 +115,23 @@ function image(v: Reader, width: number, height: number, step: number): Float32A
           if (y < height && x < width) out[y * width + x] = asHalf(px[r * 8 + n]);
         }
     }
+  return out;
+}
+
+// DCT_PLANES: a's planes (as for NEIGHBOURS) each an image of views × lights, coded like b's
+// images in streams of their own; the outer channels are their offsets plus the middle one.
+function angularImages(v: Reader, n: number, step: number, rows: AngularRows): Float32Array {
+  const { lights, channels } = rows, pairs = n / channels;
+  const planes: Float32Array[] = [];
+  for (let j = 0; j < channels; ++j) planes.push(image(v, lights, pairs / lights, step, ANGULAR_DC));
+  if (channels !== 3) return planes[0];
+  const out = new Float32Array(n);
+  for (let p = 0; p < pairs; ++p) {
+    const middle = planes[0][p];
+    out[3 * p + 1] = middle;
+    out[3 * p] = asHalf(planes[1][p] + middle);
+    out[3 * p + 2] = asHalf(planes[2][p] + middle);
+  }
   return out;
 }
 
@@ -136,9 +156,12 @@ export function decodeCodedComponent(
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   const steps = [view.getFloat32(4, true), view.getFloat32(8, true)];
   const isImage = !!texelImage && texelImage.width > 0 && texelImage.height > 0 && texelImage.width * texelImage.height === texels;
-  // Predictions 0 (channels, for rows of 3 channels) and NEIGHBOURS (for the rows' layout) are
-  // format 2's.
-  if (aStride === NEIGHBOURS) {
+  // Predictions 0 (channels, for rows of 3 channels), NEIGHBOURS and DCT_PLANES (for the rows'
+  // layout) are format 2's.
+  if (aStride === DCT_PLANES) {
+    if (format === VARINT_FORMAT) throw new Error(`${what}: a as images of directions in format 1`);
+    if (!neighboursFit(layout, rows)) throw new Error(`${what}: a as images of directions, but the factor's rows are not laid out by directions`);
+  } else if (aStride === NEIGHBOURS) {
     if (format === VARINT_FORMAT) throw new Error(`${what}: prediction by neighbouring directions in format 1`);
     if (!neighboursFit(layout, rows)) throw new Error(`${what}: prediction by neighbouring directions, but the factor's rows are not laid out by directions`);
   } else if (aStride > MAX_STRIDE || (aStride === 0 && (format === VARINT_FORMAT || rows % 3 !== 0))) {
@@ -158,7 +181,7 @@ export function decodeCodedComponent(
     reader = { get: (stream) => model.get(coder, stream) };
     left = () => coder.remaining;
   }
-  const a = plain(reader, rows, steps[0], aStride, ANGULAR, layout);
+  const a = aStride === DCT_PLANES ? angularImages(reader, rows, steps[0], layout!) : plain(reader, rows, steps[0], aStride, ANGULAR, layout);
   const b = kind === DCT_IMAGE ? image(reader, texelImage!.width, texelImage!.height, steps[1]) : plain(reader, texels, steps[1], bStride, TEXELS);
   if (left() !== 0) throw new Error(`${what}: ${left()} bytes after the coded factors`);
   return { a, b };

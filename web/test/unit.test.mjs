@@ -308,6 +308,28 @@ test("the viewer reads the prediction by neighbouring directions as the C++ read
   );
 });
 
+// coded_test.cpp's worked example of a as images of directions (prediction 129).
+test("the viewer reads a as images of directions as the C++ reader does", () => {
+  const bytes = new Uint8Array([
+    0x02, 0x81, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3f, 0x00, 0x00, 0x80, 0x3e,
+    0x00, 0xb7, 0xff, 0xfc, 0x00, 0x00, 0x00, 0x00, 0x39, 0x91, 0xd8, 0x00, 0x01, 0x18, 0xba, 0x4f, 0x00, 0xf0, 0x20, 0xf0, 0x00,
+  ]);
+  const layout = { lights: 8, channels: 3 };
+  const { a, b } = M.decodeCodedComponent(bytes, 192, 1, null, "b0.k0", layout);
+  assert.deepEqual(Array.from(a), Array.from({ length: 64 }, () => [0.75, 0.5, 0]).flat());
+  assert.deepEqual(Array.from(b), [0.75]);
+  assert.throws(
+    () => M.decodeCodedComponent(bytes, 192, 1, null, "b0.k0"),
+    /^Error: section 'b0\.k0': a as images of directions, but the factor's rows are not laid out by directions$/,
+  );
+  const format1 = bytes.slice();
+  format1[0] = 1;
+  assert.throws(
+    () => M.decodeCodedComponent(format1, 192, 1, null, "b0.k0", layout),
+    /^Error: section 'b0\.k0': a as images of directions in format 1$/,
+  );
+});
+
 test("the interpolation tables give weight 1 at the sampled directions and a partition of unity", () => {
   const { info, tables } = decode(fx.packages.woven_fabric);
   for (let i = 0; i < info.nL; ++i) {

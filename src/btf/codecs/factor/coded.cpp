@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include <fmt/format.h>
 #include <zstd.h>
@@ -55,7 +56,9 @@ enum Stream : int {
     kTexels = 2,         // b without a neighbourhood (lpca's clusters)
     kDc = 3,             // b: DC differences along the blocks
     kBands = 4,          // b: 4 + the band's group (1…8: the zig-zag diagonals, 36…63 last)
-    kStreams = kBands + 9
+    kAngularDc = 13,     // a as images of its planes (kDctPlanes): DC differences
+    kAngularBands = 14,  // … and 14 + the band's group
+    kStreams = kAngularBands + 9
 };
 
 int band_group(int k) {
@@ -213,7 +216,14 @@ int blocks_along(int size) {
 }
 
 template <class Writer>
-void put_image(Writer& out, ConstColumn c, Image image, float step) {
+void put_image(Writer& out, ConstColumn c, Image image, float step, int dc_stream = kDc,
+               bool mirror = false) {
+    // The blocks past the edge hold the image extended periodically (b: the evaluator wraps), or
+    // mirrored (a's images of directions, which do not wrap); the reader drops them either way.
+    auto extend = [mirror](int i, int size) {
+        if (i < size) return i;
+        return mirror ? std::max(0, 2 * size - 1 - i) : i % size;
+    };
     const int bw = blocks_along(image.width), bh = blocks_along(image.height);
     const size_t blocks = size_t(bw) * size_t(bh);
     std::vector<int64_t> codes(blocks * 64);
@@ -222,7 +232,8 @@ void put_image(Writer& out, ConstColumn c, Image image, float step) {
         for (int bx = 0; bx < bw; ++bx) {
             for (int r = 0; r < 8; ++r)
                 for (int n = 0; n < 8; ++n) {
-                    const int y = (by * 8 + r) % image.height, x = (bx * 8 + n) % image.width;
+                    const int y = extend(by * 8 + r, image.height),
+                              x = extend(bx * 8 + n, image.width);
                     in[r * 8 + n] = c.data[(int64_t(y) * image.width + x) * c.stride];
                 }
             dct8::forward(in, coef);
@@ -235,7 +246,7 @@ void put_image(Writer& out, ConstColumn c, Image image, float step) {
         }
     for (int k = 0; k < 64; ++k) {
         int64_t previous = 0;
-        const int stream = k == 0 ? kDc : kBands + band_group(k);
+        const int stream = k == 0 ? dc_stream : dc_stream + 1 + band_group(k);
         for (size_t b = 0; b < blocks; ++b) {
             const int64_t v = codes[b * 64 + size_t(k)];
             out.put(stream, k == 0 ? v - previous : v);
@@ -245,13 +256,13 @@ void put_image(Writer& out, ConstColumn c, Image image, float step) {
 }
 
 template <class Reader>
-void get_image(Reader& in, Column c, Image image, float step) {
+void get_image(Reader& in, Column c, Image image, float step, int dc_stream = kDc) {
     const int bw = blocks_along(image.width), bh = blocks_along(image.height);
     const size_t blocks = size_t(bw) * size_t(bh);
     std::vector<int64_t> codes(blocks * 64);
     for (int k = 0; k < 64; ++k) {
         int64_t previous = 0;
-        const int stream = k == 0 ? kDc : kBands + band_group(k);
+        const int stream = k == 0 ? dc_stream : dc_stream + 1 + band_group(k);
         for (size_t b = 0; b < blocks; ++b) {
             const int64_t d = in.get(stream);
             const int64_t v = k == 0 ? plus(d, previous) : d;
@@ -272,6 +283,67 @@ void get_image(Reader& in, Column c, Image image, float step) {
                         c.data[(int64_t(y) * image.width + x) * c.stride] = as_half(out[r * 8 + n]);
                 }
         }
+}
+
+// Prediction kDctPlanes (format 2, a's rows laid out as AngularRows): each plane of a (as for
+// kNeighbours: the middle channel and the outer ones' offsets to it, or the one channel) as an
+// image of views × lights, coded like b's images (8 × 8 DCT blocks, dead-zone quantization) but
+// mirrored past its edges (directions do not wrap), in streams of its own.
+constexpr int kDctPlanes = 129;
+
+Image angular_image(AngularRows rows, int64_t n) {
+    return {int(rows.lights), int(n / rows.channels / rows.lights)};
+}
+
+template <class Writer>
+void put_angular_image(Writer& out, ConstColumn c, float step, AngularRows rows) {
+    const int64_t pairs = c.n / rows.channels;
+    std::vector<float> plane(static_cast<size_t>(pairs));
+    for (int j = 0; j < rows.channels; ++j) {
+        for (int64_t p = 0; p < pairs; ++p) {
+            const float* v = c.data + p * rows.channels * c.stride;
+            plane[size_t(p)] = rows.channels != 3 ? v[0]
+                               : j == 0           ? v[c.stride]
+                                                  : v[(j == 1 ? 0 : 2) * c.stride] - v[c.stride];
+        }
+        put_image(out, {plane.data(), pairs, 1}, angular_image(rows, c.n), step, kAngularDc, true);
+    }
+}
+
+template <class Reader>
+void get_angular_image(Reader& in, Column c, float step, AngularRows rows) {
+    const int64_t pairs = c.n / rows.channels;
+    std::vector<float> planes(static_cast<size_t>(pairs * rows.channels));
+    for (int j = 0; j < rows.channels; ++j)
+        get_image(in, {planes.data() + j * pairs, pairs, 1}, angular_image(rows, c.n), step,
+                  kAngularDc);
+    for (int64_t p = 0; p < pairs; ++p) {
+        float* v = c.data + p * rows.channels * c.stride;
+        if (rows.channels != 3) {
+            v[0] = planes[size_t(p)];
+            continue;
+        }
+        const float middle = planes[size_t(p)];
+        v[c.stride] = middle;
+        v[0] = as_half(double(planes[size_t(pairs + p)]) + middle);
+        v[2 * c.stride] = as_half(double(planes[size_t(2 * pairs + p)]) + middle);
+    }
+}
+
+template <class Writer>
+void put_angular(Writer& out, ConstColumn c, float step, int prediction, AngularRows rows) {
+    if (prediction == kDctPlanes)
+        put_angular_image(out, c, step, rows);
+    else
+        put_plain(out, c, step, prediction, kAngular, rows);
+}
+
+template <class Reader>
+void get_angular(Reader& in, Column c, float step, int prediction, AngularRows rows) {
+    if (prediction == kDctPlanes)
+        get_angular_image(in, c, step, rows);
+    else
+        get_plain(in, c, step, prediction, kAngular, rows);
 }
 
 bool is_image(Image image, int64_t n) {
@@ -303,14 +375,37 @@ template <class Writer>
 std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& predictions, ConstColumn a,
                               ConstColumn b, Image image, float step_a, float step_b,
                               AngularRows rows) {
-    size_t best_size = 0;
+    // The prediction of least cost J = D + λ R (D: a's squared error, R: its bits). The exact
+    // predictions all round a alike, so among them the shortest wins; the images of directions
+    // (kDctPlanes) drop, through their dead zone, detail that costs more than it is worth. λ is
+    // the slope of a uniform quantizer's D(R), ln 2 / 6 · step², at the balanced step Δ / rms(b)
+    // (b's side; a's step is κ times that), expressed in a's units: ln 2 / 6 · (s_a / κ)².
+    double best_cost = 0;
     int best = predictions.front();
+    const double balanced = double(step_a) / kAngularStepScale;
+    const double lambda = std::log(2.0) / 6.0 * balanced * balanced;
+    std::vector<float> decoded(size_t(a.n));
     for (const int prediction : predictions) {
         Writer trial;
-        put_plain(trial, a, step_a, prediction, kAngular, rows);
-        const size_t size = trial.finish().size();
-        if (best_size == 0 || size < best_size) {
-            best_size = size;
+        put_angular(trial, a, step_a, prediction, rows);
+        const std::vector<uint8_t> bytes = trial.finish();
+        double distortion = 0;
+        if constexpr (std::is_same_v<Writer, RangeWriter>) {
+            range::Decoder coder(bytes.data(), bytes.size(), "(trial)");
+            range::IntegerModel model(kStreams);
+            RangeReader in{coder, model};
+            get_angular(in, {decoded.data(), a.n, 1}, step_a, prediction, rows);
+        } else {
+            VarintReader in{bytes.data(), bytes.data() + bytes.size(), "(trial)"};
+            get_angular(in, {decoded.data(), a.n, 1}, step_a, prediction, rows);
+        }
+        for (int64_t i = 0; i < a.n; ++i) {
+            const double e = double(a.data[i * a.stride]) - decoded[size_t(i)];
+            distortion += e * e;
+        }
+        const double cost = distortion + lambda * 8.0 * double(bytes.size());
+        if (prediction == predictions.front() || cost < best_cost) {
+            best_cost = cost;
             best = prediction;
         }
     }
@@ -318,7 +413,7 @@ std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& prediction
     std::vector<uint8_t> out;
     put_head(out, format, best, dct, step_a, step_b);
     Writer writer;
-    put_plain(writer, a, step_a, best, kAngular, rows);
+    put_angular(writer, a, step_a, best, rows);
     if (dct)
         put_image(writer, b, image, step_b);
     else
@@ -346,7 +441,10 @@ void put_coded(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Image im
     const std::vector<uint8_t> varints =
         coded_as<VarintWriter>(kVarintFormat, predictions, a, b, image, step_a, step_b, rows);
     if (a.n % 3 == 0) predictions.insert(predictions.begin(), 0);
-    if (neighbours_fit(rows, a.n)) predictions.push_back(kNeighbours);
+    if (neighbours_fit(rows, a.n)) {
+        predictions.push_back(kNeighbours);
+        predictions.push_back(kDctPlanes);
+    }
     const std::vector<uint8_t> ranged =
         coded_as<RangeWriter>(kFormat, predictions, a, b, image, step_a, step_b, rows);
     const std::vector<uint8_t>& best = zstd_size(varints) < ranged.size() ? varints : ranged;
@@ -426,7 +524,14 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
     std::memcpy(steps, data + 4, 8);
     // Predictions 0 (channels, for rows of 3 channels) and kNeighbours (for the rows' layout)
     // are format 2's.
-    if (a_stride == kNeighbours) {
+    if (a_stride == kDctPlanes) {
+        if (format == kVarintFormat) fail("{}: a as images of directions in format 1", what);
+        if (!neighbours_fit(rows, a.n))
+            fail(
+                "{}: a as images of directions, but the factor's rows are not laid out by "
+                "directions",
+                what);
+    } else if (a_stride == kNeighbours) {
         if (format == kVarintFormat)
             fail("{}: prediction by neighbouring directions in format 1", what);
         if (!neighbours_fit(rows, a.n))
@@ -446,7 +551,7 @@ void get_component(const uint8_t* data, size_t size, Column a, Column b, Image i
     for (const float s : steps)
         if (!(s > 0) || !std::isfinite(s)) fail("{}: quantization step {}", what, s);
     auto factors = [&](auto& in) {
-        get_plain(in, a, steps[0], a_stride, kAngular, rows);
+        get_angular(in, a, steps[0], a_stride, rows);
         if (kind == kDctImage)
             get_image(in, b, image, steps[1]);
         else

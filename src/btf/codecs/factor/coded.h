@@ -16,14 +16,19 @@
 /// middle one: a component's colour changes slowly over the directions), or where the rows'
 /// layout over views and lights is known (AngularRows) by neighbouring directions (the same
 /// planes, each predicted by the mean of the previous light's and the previous view's: a is
-/// smooth over both). b: where b is an image (W
+/// smooth over both), or as images of directions (each plane an image of views × lights, coded
+/// like b's images below but mirrored past its edges; its dead zone drops angular detail a weak
+/// component cannot pay for), whichever has the least squared error plus λ times its bits (λ the
+/// slope of the balanced quantizer; among the rounded predictions, the shortest). b: where b is
+/// an image (W
 /// × H texels of a level, one cluster), 8 × 8 DCT blocks of the image extended periodically to a
 /// multiple of 8 (the evaluator wraps around the edges), quantized with a dead zone (|c|/step +
 /// 1/3, rounded down: coefficients under 2/3 of a step become 0) and written band by band (every
 /// block's first coefficient in zig-zag order, as differences along the blocks, then every block's
 /// second, …); elsewhere (lpca's clusters) uniform rounding with differences like a. The
 /// integers are written with an adaptive binary range coder (util/range_coder.h), whose contexts
-/// separate a's streams, DC differences and the bands by zig-zag diagonal (format 2), or as
+/// separate a's streams, the images' DC differences and bands by zig-zag diagonal (a's apart
+/// from b's; format 2), or as
 /// zig-zag varints for the container's zstd (format 1, distances only), whichever is shorter
 /// after zstd: zstd's matches find repeated runs the coder's adaptive models miss. Decoded values
 /// are rounded to half floats (so the evaluator keeps half rows, as for f16): a further relative
@@ -90,9 +95,11 @@ void put_component(std::vector<uint8_t>& out, ConstColumn a, ConstColumn b, Imag
 void get_component(const uint8_t* data, size_t size, Column a, Column b, Image image,
                    std::string_view name, AngularRows rows = {});
 
-/// The largest error of a decoded b value: every one of the 64 coefficients of its block off by
-/// at most 2/3 of a step (the dead zone), each weighted by at most 1/4 (the largest value of a
-/// product of two 8-point orthonormal DCT basis functions): 64 · 2/3 · 1/4 · step.
+/// The largest error of a decoded value of a DCT-coded image (b, or a plane of a as images of
+/// directions, whose outer channels add the middle one's error to their offset's): every one of
+/// the 64 coefficients of its block off by at most 2/3 of a step (the dead zone), each weighted by
+/// at most 1/4 (the largest value of a product of two 8-point orthonormal DCT basis functions):
+/// 64 · 2/3 · 1/4 · step.
 constexpr double kImageErrorPerStep = 64.0 * 2.0 / 3.0 / 4.0;
 
 }  // namespace btf::factor::coded

@@ -155,6 +155,62 @@ TEST(CodedComponent, PredictionByNeighbouringDirectionsWorkedExample) {
 // An angular factor smooth over views and lights (rgb, 9 × 9 directions) is coded by its
 // neighbouring directions when the layout is known, shorter than along the rows alone, and
 // decodes within half a step.
+// a as images of directions (prediction 129), worked by hand: 8 views × 8 lights × 3 channels,
+// c₁ = 0.5, c₀ = 0.75, c₂ = 0 everywhere, s_a = 0.5; b one value 0.75 (plain, distance 1, s_b =
+// 0.25). The planes are c₁ = 0.5, c₀ − c₁ = 0.25 and c₂ − c₁ = −0.5, each one 8 × 8 block whose
+// orthonormal DCT is 8 × the value at DC and 0 elsewhere: DC codes 8, 4 and −8 (stream 13, as
+// differences along the one block), the 63 other bands zeros (stream 14 + the band's zig-zag
+// diagonal); then b's code 3 in stream 2.
+const std::vector<uint8_t> kDirectionImagesExample = {
+    0x02, 0x81, 0x00, 0x01, 0x00, 0x00, 0x00, 0x3f, 0x00, 0x00, 0x80, 0x3e,
+};
+
+int band_group_of(int k) {
+    int group = 1;
+    for (const int start : {3, 6, 10, 15, 21, 28, 36})
+        if (k >= start) ++group;
+    return group;
+}
+
+TEST(CodedComponent, AngularImagesWorkedExample) {
+    std::vector<uint8_t> bytes = kDirectionImagesExample;
+    range::Encoder coder;
+    range::IntegerModel model(23);
+    for (const int dc : {8, 4, -8}) {
+        model.put(coder, 13, dc);
+        for (int k = 1; k < 64; ++k) model.put(coder, 14 + band_group_of(k), 0);
+    }
+    model.put(coder, 2, 3);
+    const std::vector<uint8_t> payload = coder.finish();
+    bytes.insert(bytes.end(), payload.begin(), payload.end());
+    std::string hex;
+    for (const uint8_t v : payload) hex += fmt::format("{:02x} ", v);
+    // The bytes the viewer's test reads.
+    EXPECT_EQ(hex, "00 b7 ff fc 00 00 00 00 39 91 d8 00 01 18 ba 4f 00 f0 20 f0 00 ");
+    std::vector<float> a(192), b(1);
+    get_component(bytes.data(), bytes.size(), {a.data(), 192, 1}, {b.data(), 1, 1}, {}, "b0.k0",
+                  {8, 3});
+    for (int pair = 0; pair < 64; ++pair) {
+        EXPECT_EQ(a[size_t(3 * pair)], 0.75f) << pair;
+        EXPECT_EQ(a[size_t(3 * pair + 1)], 0.5f) << pair;
+        EXPECT_EQ(a[size_t(3 * pair + 2)], 0.0f) << pair;
+    }
+    EXPECT_EQ(b, std::vector<float>{0.75f});
+    // The images need the rows' layout, and format 2.
+    EXPECT_EQ(test::error_of([&] {
+                  get_component(bytes.data(), bytes.size(), {a.data(), 192, 1}, {b.data(), 1, 1},
+                                {}, "b0.k0");
+              }),
+              "section 'b0.k0': a as images of directions, but the factor's rows are not laid "
+              "out by directions");
+    bytes[0] = 1;
+    EXPECT_EQ(test::error_of([&] {
+                  get_component(bytes.data(), bytes.size(), {a.data(), 192, 1}, {b.data(), 1, 1},
+                                {}, "b0.k0", {8, 3});
+              }),
+              "section 'b0.k0': a as images of directions in format 1");
+}
+
 TEST(CodedComponent, SmoothAngularFactorsArePredictedByNeighbours) {
     const int views = 9, lights = 9;
     std::vector<float> a(size_t(views * lights * 3)), b(64);
@@ -169,16 +225,52 @@ TEST(CodedComponent, SmoothAngularFactorsArePredictedByNeighbours) {
     put_component(by_rows, {a.data(), int64_t(a.size()), 1}, {b.data(), 64, 1}, {8, 8}, 0.002);
     put_component(by_directions, {a.data(), int64_t(a.size()), 1}, {b.data(), 64, 1}, {8, 8}, 0.002,
                   nullptr, {lights, 3});
-    ASSERT_EQ(by_directions[1], 128);
-    EXPECT_NE(by_rows[1], 128);
+    // By neighbouring directions (128) or as images of directions (129), whichever costs less.
+    const int prediction = by_directions[1];
+    ASSERT_TRUE(prediction == 128 || prediction == 129) << prediction;
+    EXPECT_LT(by_rows[1], 128);
     EXPECT_LT(by_directions.size(), by_rows.size());
     std::vector<float> a2(a.size()), b2(64);
     get_component(by_directions.data(), by_directions.size(), {a2.data(), int64_t(a2.size()), 1},
                   {b2.data(), 64, 1}, {8, 8}, "b0.k0", {lights, 3});
+    // Rounding: half a step; images: kImageErrorPerStep steps per plane, an outer channel being
+    // its offset plus the middle one.
     const double sa = step_of(by_directions, 0);
+    const double bound = prediction == 128 ? 0.5 * sa : 2 * kImageErrorPerStep * sa;
     for (size_t i = 0; i < a.size(); ++i)
-        EXPECT_LE(std::abs(a2[i] - a[i]), 0.5 * sa * 1.0001 + std::ldexp(std::abs(a2[i]), -11))
-            << i;
+        EXPECT_LE(std::abs(a2[i] - a[i]), bound * 1.0001 + std::ldexp(std::abs(a2[i]), -11)) << i;
+}
+
+// At a coarse step, a smooth angular factor costs less as images of directions, whose dead zone
+// drops the detail the step cannot hold, than rounded value by value.
+TEST(CodedComponent, SmoothAngularFactorsAtACoarseStepAreCodedAsImages) {
+    const int views = 16, lights = 16;
+    std::vector<float> a(size_t(views * lights * 3)), b(64);
+    std::mt19937 rng(3);
+    std::normal_distribution<float> noise(0.0f, 0.02f);
+    for (int v = 0; v < views; ++v)
+        for (int l = 0; l < lights; ++l)
+            for (int c = 0; c < 3; ++c)
+                a[size_t((v * lights + l) * 3 + c)] = std::sin(0.2f * float(v)) *
+                                                          std::cos(0.15f * float(l)) *
+                                                          (1.0f + 0.2f * float(c)) +
+                                                      noise(rng);
+    for (int t = 0; t < 64; ++t) b[size_t(t)] = 1.0f + 0.1f * std::sin(float(t));
+    std::vector<uint8_t> bytes;
+    put_component(bytes, {a.data(), int64_t(a.size()), 1}, {b.data(), 64, 1}, {8, 8}, 0.05, nullptr,
+                  {lights, 3});
+    EXPECT_EQ(bytes[1], 129);
+    std::vector<float> a2(a.size()), b2(64);
+    get_component(bytes.data(), bytes.size(), {a2.data(), int64_t(a2.size()), 1},
+                  {b2.data(), 64, 1}, {8, 8}, "b0.k0", {lights, 3});
+    double error = 0, energy = 0;
+    const double bound = 2 * kImageErrorPerStep * step_of(bytes, 0);  // docs/formats.md
+    for (size_t i = 0; i < a.size(); ++i) {
+        error += (a2[i] - a[i]) * (a2[i] - a[i]);
+        energy += a[i] * a[i];
+        EXPECT_LE(std::abs(a2[i] - a[i]), bound + std::ldexp(std::abs(a2[i]), -11)) << i;
+    }
+    EXPECT_LT(error, 0.05 * energy);  // the smooth part is kept
 }
 
 // Random factors: a within half its step of the original, b (an image, also one whose sides are

@@ -277,9 +277,13 @@ TEST(Fmf, QuantizedDecodingStaysWithinTheDocumentedBounds) {
                 ASSERT_NE(s, nullptr);
                 ASSERT_EQ(s->data[2], 1) << "the 10 × 10 texels are DCT-coded as an image";
                 std::memcpy(steps, s->data.data() + 4, 8);
-                // Plus the rounding of the decoded values to halves.
-                da[k] =
-                    steps[0] / 2 * 1.001f + std::ldexp(block.a.col(k).cwiseAbs().maxCoeff(), -10);
+                // Plus the rounding of the decoded values to halves. a rounded (s_a / 2), or
+                // as DCT-coded images of its planes (prediction 129): each plane off by
+                // kImageErrorPerStep steps, an outer channel by its offset's and the middle's.
+                const float a_error = s->data[1] == 129
+                                          ? 2 * float(factor::coded::kImageErrorPerStep) * steps[0]
+                                          : steps[0] / 2;
+                da[k] = a_error * 1.001f + std::ldexp(block.a.col(k).cwiseAbs().maxCoeff(), -10);
                 db[k] = float(factor::coded::kImageErrorPerStep) * steps[1] * 1.001f +
                         std::ldexp(block.b.col(k).cwiseAbs().maxCoeff(), -10);
             }
