@@ -56,7 +56,7 @@ compress fmf_coded --codec fmf --components 3 --quantize coded -p quality=30
 compress pca_views --codec pca-views --components 3
 compress lpca --codec lpca --components 3
 compress perceptual --codec perceptual --components 6
-compress perceptual_levels --codec perceptual --components 6 -p quality=0.3
+compress perceptual_levels --codec perceptual --components 6 -p base-quality=0.3
 compress pca_views_groups --codec pca-views --components 2 -p views-per-group=2
 compress mlvq --codec mlvq -p n-theta-v=3 -p n-phi-v=4 -p n-alpha=3 -p n-beta=4
 compress mlvq_isotropic --codec mlvq -p n-theta-v=3 -p n-phi-v=1 -p n-alpha=3 -p n-beta=4
