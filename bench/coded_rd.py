@@ -143,7 +143,9 @@ class Sweep:
         pkg = self.package(material, config)
         if not os.path.exists(pkg):  # a result read from another run: made again, the same
             self.compress(material, config)
-            if os.path.getsize(pkg) != r["bytes"]:
+            # The same configuration within 0.1 % (container headers have grown by a few bytes
+            # since some results were recorded); otherwise it is not the package measured.
+            if abs(os.path.getsize(pkg) - r["bytes"]) > 0.001 * r["bytes"]:
                 raise RuntimeError(f"{pkg}: {os.path.getsize(pkg)} bytes, the result read has "
                                    f"{r['bytes']}")
         q = json.loads(run([self.btf, "-q", "quality", src, pkg,
