@@ -369,7 +369,7 @@ void put_head(std::vector<uint8_t>& out, uint8_t format, int a_prediction, bool 
     out.insert(out.end(), bytes, bytes + 8);
 }
 
-// A section in one format: a's prediction the one of `predictions` that codes shortest, the
+// A section in one format: a's prediction the one of `predictions` of least cost (below), the
 // head, then the payload.
 template <class Writer>
 std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& predictions, ConstColumn a,
@@ -384,24 +384,31 @@ std::vector<uint8_t> coded_as(uint8_t format, const std::vector<int>& prediction
     int best = predictions.front();
     const double balanced = double(step_a) / kAngularStepScale;
     const double lambda = std::log(2.0) / 6.0 * balanced * balanced;
-    std::vector<float> decoded(size_t(a.n));
+    // The rounded predictions' error, the same for each of them.
+    double rounding = 0;
+    for (int64_t i = 0; i < a.n; ++i) {
+        const double v = a.data[i * a.stride];
+        const double e = v - as_half(double(rounded(v / step_a)) * step_a);
+        rounding += e * e;
+    }
     for (const int prediction : predictions) {
         Writer trial;
         put_angular(trial, a, step_a, prediction, rows);
         const std::vector<uint8_t> bytes = trial.finish();
-        double distortion = 0;
+        double distortion = rounding;
         if constexpr (std::is_same_v<Writer, RangeWriter>) {
-            range::Decoder coder(bytes.data(), bytes.size(), "(trial)");
-            range::IntegerModel model(kStreams);
-            RangeReader in{coder, model};
-            get_angular(in, {decoded.data(), a.n, 1}, step_a, prediction, rows);
-        } else {
-            VarintReader in{bytes.data(), bytes.data() + bytes.size(), "(trial)"};
-            get_angular(in, {decoded.data(), a.n, 1}, step_a, prediction, rows);
-        }
-        for (int64_t i = 0; i < a.n; ++i) {
-            const double e = double(a.data[i * a.stride]) - decoded[size_t(i)];
-            distortion += e * e;
+            if (prediction == kDctPlanes) {  // a as decoded: through the images' dead zone
+                std::vector<float> decoded(static_cast<size_t>(a.n));
+                range::Decoder coder(bytes.data(), bytes.size(), "(trial)");
+                range::IntegerModel model(kStreams);
+                RangeReader in{coder, model};
+                get_angular(in, {decoded.data(), a.n, 1}, step_a, prediction, rows);
+                distortion = 0;
+                for (int64_t i = 0; i < a.n; ++i) {
+                    const double e = double(a.data[i * a.stride]) - decoded[size_t(i)];
+                    distortion += e * e;
+                }
+            }
         }
         const double cost = distortion + lambda * 8.0 * double(bytes.size());
         if (prediction == predictions.front() || cost < best_cost) {
