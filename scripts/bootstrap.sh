@@ -14,6 +14,7 @@ packages=(
   libqhull-dev
   libkissfft-dev
   libtbb-dev
+  openmpi-bin libopenmpi-dev  # distributed compression (mpirun btf compress, compress-many)
   libembree-dev libtinyobjloader-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev
   libxxhash-dev libzstd-dev libdeflate-dev

@@ -20,6 +20,7 @@
 #include "btf/stream/catalog.h"
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
+#include "mpi_world.h"
 
 namespace btf::cli {
 
@@ -81,7 +82,8 @@ class Bar {
 }  // namespace
 
 Progress make_progress(const GlobalOptions& options) {
-    if (options.quiet) return Progress();
+    // Across MPI ranks, rank 0 speaks for all (each rank reports its own share of the work).
+    if (options.quiet || mpi_rank() != 0) return Progress();
     auto bar = std::make_shared<Bar>(::isatty(2) != 0);
     return Progress([bar](std::string_view stage, uint64_t done, uint64_t total) {
         bar->update(stage, done, total);

@@ -9,9 +9,12 @@
 #include <string>
 #include <vector>
 
+#include "btf/codecs/codec.h"
+#include "btf/codecs/factor/model.h"
 #include "btf/core/direction.h"
 #include "btf/core/material.h"
 #include "btf/io/open.h"
+#include "btf/io/package.h"
 #include "btf/util/progress.h"
 
 namespace btf::cli {
@@ -92,6 +95,30 @@ struct TileOptions {
 };
 void add_tile_options(CLI::App& command, TileOptions& options);
 
+/// What compress and compress-many encode with: --codec, -p key=value, the shortcuts
+/// --components and --quantize, --target-size, --zstd and --no-error.
+struct EncodeOptions {
+    std::string codec = "fmf", quantize, target_size;
+    int components = 0;  // 0: not given
+    int zstd = PackageWriteOptions{}.zstd_level;
+    std::vector<std::string> params;
+    bool no_error = false;
+};
+void add_encode_options(CLI::App& command, EncodeOptions& options);
+/// The options checked and resolved for `inputs` inputs (throws btf::Error naming the option).
+struct Encoder {
+    const Codec* codec = nullptr;
+    const factor::FactorCodec* factor_codec = nullptr;  ///< null for codecs that are not
+    Params params;
+    uint64_t target = 0;  ///< --target-size in bytes (0: none)
+    PackageWriteOptions write;
+};
+Encoder resolve_encoder(const EncodeOptions& options, size_t inputs);
+/// Encodes one source with `encoder` (to its target size when it has one; `choice` is what that
+/// chose).
+Package encode_one(const Encoder& encoder, const BtfSource& source, Progress& progress,
+                   factor::FactorCodec::SizeChoice* choice = nullptr);
+
 /// A subcommand: its CLI11 parser and what to run once arguments are parsed.
 struct Command {
     CLI::App* parser = nullptr;
@@ -121,6 +148,7 @@ Command register_info(CLI::App& app, GlobalOptions& global);
 Command register_convert(CLI::App& app, GlobalOptions& global);
 Command register_synth(CLI::App& app, GlobalOptions& global);
 Command register_slice(CLI::App& app, GlobalOptions& global);
+Command register_compress_many(CLI::App& app, GlobalOptions& global);
 Command register_formats(CLI::App& app, GlobalOptions& global);
 Command register_codecs(CLI::App& app, GlobalOptions& global);
 Command register_compress(CLI::App& app, GlobalOptions& global);

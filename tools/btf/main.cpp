@@ -6,6 +6,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -17,6 +18,7 @@
 #include "btf/util/parallel.h"
 #include "btf/util/thin_products.h"
 #include "cli.h"
+#include "mpi_world.h"
 
 namespace {
 // SIGINT/SIGTERM cancel the running operation, which unwinds and removes its temporary output.
@@ -74,10 +76,31 @@ std::string shell_command_line(int argc, char** argv) {
     }
     return line;
 }
+
+// Under MPI, a failure only this rank saw (not agreed by every rank) must end the others, which
+// may be waiting for this one in a collective operation.
+int failed(int code) {
+    if (btf::cli::mpi_world() && !btf::cli::failure_agreed()) btf::cli::abort_world(code);
+    return code;
+}
+
+int run(int argc, char** argv);
 }  // namespace
 
 int main(int argc, char** argv) {
     install_signal_handlers();
+    std::unique_ptr<btf::cli::MpiSession> mpi;
+    try {
+        mpi = std::make_unique<btf::cli::MpiSession>();
+    } catch (const btf::Error& e) {
+        std::fprintf(stderr, "btf: error: %s\n", e.what());
+        return 1;
+    }
+    return run(argc, argv);
+}
+
+namespace {
+int run(int argc, char** argv) {
     using namespace btf::cli;
     CLI::App app{
         "btf: measured material appearance (Bidirectional Texture Functions) from disk "
@@ -110,15 +133,16 @@ int main(int argc, char** argv) {
                  "datasets; or $BTF_ALLOW_HDF5_EXTERNAL=1)");
 
     const std::vector<Command> commands = {
-        register_info(app, global),       register_convert(app, global),
-        register_synth(app, global),      register_slice(app, global),
-        register_compress(app, global),   register_decompress(app, global),
-        register_eval(app, global),       register_quality(app, global),
-        register_report(app, global),     register_render(app, global),
-        register_image_diff(app, global), register_bsvtf(app, global),
-        register_bsvtf_sim(app, global),  register_serve(app, global),
-        register_bundle(app, global),     register_codecs(app, global),
-        register_formats(app, global),    register_bench(app, global),
+        register_info(app, global),          register_convert(app, global),
+        register_synth(app, global),         register_slice(app, global),
+        register_compress(app, global),      register_decompress(app, global),
+        register_eval(app, global),          register_quality(app, global),
+        register_report(app, global),        register_render(app, global),
+        register_image_diff(app, global),    register_bsvtf(app, global),
+        register_bsvtf_sim(app, global),     register_serve(app, global),
+        register_bundle(app, global),        register_codecs(app, global),
+        register_compress_many(app, global), register_formats(app, global),
+        register_bench(app, global),
     };
 
     try {
@@ -140,19 +164,32 @@ int main(int argc, char** argv) {
                          btf::thin::kernel() == btf::thin::Kernel::kOwn ? "btfkit's AVX-512 kernels"
                                                                         : "OpenBLAS",
                          btf::blas::description().c_str());
-        for (const Command& command : commands)
-            if (command.parser->parsed()) command.run();
+        for (const Command& command : commands) {
+            if (!command.parser->parsed()) continue;
+            const std::string name = command.parser->get_name();
+            if (mpi_world() && name != "compress" && name != "compress-many") {
+                const std::string error = fmt::format(
+                    "btf {} runs in one process: start it without mpirun (compress and "
+                    "compress-many run across ranks)",
+                    name);
+                agree_everywhere(error);
+                throw btf::Error(error);
+            }
+            command.run();
+        }
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        agree_everywhere(e.what());
+        return failed(app.exit(e));
     } catch (const btf::Cancelled&) {
         std::fprintf(stderr, "btf: cancelled\n");
-        return 130;
+        return failed(130);
     } catch (const btf::Error& e) {
         std::fprintf(stderr, "btf: error: %s\n", e.what());
-        return 1;
+        return failed(1);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "btf: internal error: %s\n", e.what());
-        return 2;
+        return failed(2);
     }
     return 0;
 }
+}  // namespace

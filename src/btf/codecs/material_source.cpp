@@ -5,6 +5,7 @@
 
 #include "btf/codecs/codec.h"
 #include "btf/io/package.h"
+#include "btf/util/collective.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 
@@ -68,24 +69,34 @@ double sample_rmse(const BtfSource& reference, const Material& material, Progres
     const int nl = s.num_lights();
     const int w = reference.width(), h = reference.height();
     // One sum per image, added in image order afterwards: the same result for any thread count.
+    // Across ranks (util/collective.h), each reads its share of the views and the sums are
+    // completed by adding the ranks' (zeros where a rank read nothing): the same result again.
+    Collective* ranks = current_collective();
+    const auto [first_view, last_view] =
+        ranks ? rank_share(s.num_views(), ranks->rank(), ranks->size())
+              : std::pair<int64_t, int64_t>(0, s.num_views());
     std::vector<double> sums(static_cast<size_t>(images), 0.0);
-    progress.begin("measuring error", static_cast<uint64_t>(images));
-    parallel_for(0, images, [&](int64_t i) {
-        const int view = static_cast<int>(i / nl), light = static_cast<int>(i % nl);
-        Image image;
-        reference.read_image(view, light, image);
-        double sum = 0;
-        for (int y = 0; y < h; ++y)
-            for (int x = 0; x < w; ++x) {
-                const Rgb a = image.rgb(x, y);
-                const Rgb b = material.eval_sample(x, y, view, light);
-                const double dr = double(a.r) - b.r, dg = double(a.g) - b.g, db = double(a.b) - b.b;
-                sum += dr * dr + dg * dg + db * db;
-            }
-        sums[static_cast<size_t>(i)] = sum;
-        progress.advance();
+    progress.begin("measuring error", static_cast<uint64_t>((last_view - first_view) * nl));
+    together(ranks, [&] {
+        parallel_for(first_view * nl, last_view * nl, [&](int64_t i) {
+            const int view = static_cast<int>(i / nl), light = static_cast<int>(i % nl);
+            Image image;
+            reference.read_image(view, light, image);
+            double sum = 0;
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x) {
+                    const Rgb a = image.rgb(x, y);
+                    const Rgb b = material.eval_sample(x, y, view, light);
+                    const double dr = double(a.r) - b.r, dg = double(a.g) - b.g,
+                                 db = double(a.b) - b.b;
+                    sum += dr * dr + dg * dg + db * db;
+                }
+            sums[static_cast<size_t>(i)] = sum;
+            progress.advance();
+        });
     });
     progress.finish();
+    if (ranks) ranks->sum(sums.data(), images);
     double total = 0;
     for (double v : sums) total += v;
     const double count = double(images) * double(w) * double(h) * 3.0;

@@ -50,6 +50,7 @@ std::unique_ptr<BtfSource> open_package_or_source(const std::filesystem::path& p
 /// Root-mean-square difference, over every texel, view, light and RGB channel (linear values),
 /// between `reference` and `material` evaluated at the reference's sample indices. Reads the
 /// reference image by image, in parallel; one progress unit per image (stage "measuring error").
+/// Across the ranks of a current_collective(), each reads its share of the views.
 /// Throws btf::Error naming the reference when extent or direction counts differ.
 double sample_rmse(const BtfSource& reference, const Material& material,
                    Progress& progress = Progress::none());

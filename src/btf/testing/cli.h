@@ -16,11 +16,18 @@ struct CliResult {
     std::string output;  // stdout and stderr together
 };
 
+/// Runs shell text `command` (its stderr joined to its stdout).
+inline CliResult run_shell(const std::string& command);
+
 /// Runs `btf --quiet ARGS` through the shell (ARGS is shell text: quote paths with spaces), after
 /// the shell commands `setup` when given (e.g. "ulimit -v 3145728").
 inline CliResult run(const std::string& args, const std::string& setup = "") {
-    const std::string command = (setup.empty() ? "" : setup + " && exec ") +
-                                std::string(BTF_TOOL_PATH) + " --quiet " + args + " 2>&1";
+    return run_shell((setup.empty() ? "" : setup + " && exec ") + std::string(BTF_TOOL_PATH) +
+                     " --quiet " + args);
+}
+
+inline CliResult run_shell(const std::string& shell_text) {
+    const std::string command = shell_text + " 2>&1";
     CliResult result;
     FILE* pipe = ::popen(command.c_str(), "r");
     if (!pipe) return result;

@@ -823,6 +823,12 @@ int64_t SourceRows::rows(int matrix) const {
     return m_group_rows[matrix % m_groups];
 }
 
+int64_t SourceRows::batch_rows(int view, int matrix) const {
+    return matrix % m_groups == m_group_of_view.at(view)
+               ? int64_t(m_source.num_lights()) * m_colour.channels()
+               : 0;
+}
+
 void SourceRows::read(int view, std::vector<int64_t>& first, std::vector<Matrix>& out) const {
     const int planes = m_colour.planes(), channels = m_colour.channels();
     const int lights = m_source.num_lights();

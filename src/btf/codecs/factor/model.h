@@ -249,6 +249,7 @@ class SourceRows final : public RowBatches {
     int64_t cols(int) const override { return m_source.num_texels(); }
     int batches() const override { return m_source.num_views(); }
     void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override;
+    int64_t batch_rows(int batch, int matrix) const override;
 
     /// Matrix index of (plane, group).
     int matrix(int plane, int group) const { return plane * m_groups + group; }

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "btf/util/blas.h"
+#include "btf/util/collective.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
 #include "btf/util/thin_products.h"
@@ -41,6 +42,32 @@ Matrix gaussian(int64_t rows, int64_t cols, uint64_t seed) {
     for (int64_t i = 0; i < out.size(); ++i) out.data()[i] = normal(rng);
     return out;
 }
+
+// The ranks of a distributed run (util/collective.h) and this rank's share of the batches; one
+// process: every batch, and sums that do nothing.
+struct Ranks {
+    Collective* collective = nullptr;
+    int first = 0, last = 0;  // batches [first, last)
+
+    explicit Ranks(const RowBatches& batches) : collective(current_collective()) {
+        const auto [f, l] =
+            collective ? rank_share(batches.batches(), collective->rank(), collective->size())
+                       : std::pair<int64_t, int64_t>(0, batches.batches());
+        first = static_cast<int>(f);
+        last = static_cast<int>(l);
+    }
+    bool owns(int batch) const { return batch >= first && batch < last; }
+    // Sums over the ranks (each holds zeros where it read nothing, or its partial sums).
+    void sum(Matrix& m) const {
+        if (collective) collective->sum(m.data(), m.size());
+    }
+    void sum(std::vector<float>& v) const {
+        if (collective) collective->sum(v.data(), static_cast<int64_t>(v.size()));
+    }
+    void sum(std::vector<double>& v) const {
+        if (collective) collective->sum(v.data(), static_cast<int64_t>(v.size()));
+    }
+};
 
 // The rows of one matrix in one batch, as read or as held in memory (row-major, cols floats per
 // row).
@@ -81,16 +108,15 @@ double squared_norm(const Rows& rows) {
     return total;
 }
 
-// Reads every batch once (or views it, when the rows are in memory and need no centring),
-// centring rows if requested; calls use(m, first, rows) per matrix.
+// pass() over this rank's share of the batches.
 template <typename Use>
-void pass(const RowBatches& batches, bool subtract_mean, std::vector<std::vector<float>>* means,
-          std::vector<double>* energy, Progress& progress, std::string_view stage, Use&& use) {
-    progress.begin(stage, static_cast<uint64_t>(batches.batches()));
+void pass_batches(const RowBatches& batches, const Ranks& ranks, bool subtract_mean,
+                  std::vector<std::vector<float>>* means, std::vector<double>* energy,
+                  Progress& progress, Use& use) {
     std::vector<int64_t> first, counts;
     std::vector<const float*> data;
     std::vector<Matrix> block;
-    for (int b = 0; b < batches.batches(); ++b) {
+    for (int b = ranks.first; b < ranks.last; ++b) {
         progress.poll();
         const bool viewed = !subtract_mean && batches.view(b, first, data, counts);
         if (!viewed) {
@@ -124,6 +150,19 @@ void pass(const RowBatches& batches, bool subtract_mean, std::vector<std::vector
         }
         progress.advance();
     }
+}
+
+// Reads every batch of this rank's share once (or views it, when the rows are in memory and need
+// no centring), centring rows if requested; calls use(m, first, rows) per matrix. Across ranks, a
+// failure on any rank is thrown on every rank at the end of the pass; the caller sums what the
+// pass computed.
+template <typename Use>
+void pass(const RowBatches& batches, const Ranks& ranks, bool subtract_mean,
+          std::vector<std::vector<float>>* means, std::vector<double>* energy, Progress& progress,
+          std::string_view stage, Use&& use) {
+    progress.begin(stage, static_cast<uint64_t>(ranks.last - ranks.first));
+    together(ranks.collective,
+             [&] { pass_batches(batches, ranks, subtract_mean, means, energy, progress, use); });
     progress.finish();
 }
 
@@ -230,8 +269,9 @@ Shapes check_options(const RowBatches& batches, const SvdOptions& options) {
     return out;
 }
 
-std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions& options,
-                                    const Shapes& shapes, Progress& progress) {
+std::vector<Svd> subspace_iteration(const RowBatches& batches, const Ranks& ranks,
+                                    const SvdOptions& options, const Shapes& shapes,
+                                    Progress& progress) {
     const int count = batches.matrices();
     const std::vector<int>& rank = shapes.rank;
     const std::vector<int>& width = shapes.width;
@@ -262,11 +302,16 @@ std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions&
             y[m] = Matrix::Zero(batches.rows(m), width[m]);
         }
         const bool first_pass = pass_number == 0;
-        pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
+        pass(batches, ranks, options.subtract_mean, first_pass ? &means : nullptr,
              first_pass ? &energy : nullptr, progress, stage(),
              [&](int m, int64_t first, const Rows& rows) {
                  multiply_rows(rows, operand[m], first, y[m]);
              });
+        for (int m = 0; m < count; ++m) {
+            ranks.sum(y[m]);
+            if (first_pass) ranks.sum(means[m]);
+        }
+        if (first_pass) ranks.sum(energy);
         if (maps)
             for (int m = 0; m < count; ++m) maps->left(m, y[m], false);
     };
@@ -285,11 +330,12 @@ std::vector<Svd> subspace_iteration(const RowBatches& batches, const SvdOptions&
             }
             z[m] = Matrix::Zero(width[m], batches.cols(m));  // zᵀ during the pass
         }
-        pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
+        pass(batches, ranks, options.subtract_mean, nullptr, nullptr, progress, stage(),
              [&](int m, int64_t first, const Rows& rows) {
                  multiply_transposed(rows, maps ? operand[m] : basis[m], first, z[m]);
              });
         for (int m = 0; m < count; ++m) {
+            ranks.sum(z[m]);
             z[m].transposeInPlace();
             if (maps) maps->right(m, z[m], false);
         }
@@ -362,39 +408,68 @@ void next_block(Eigen::MatrixXd& basis, int64_t used, Eigen::MatrixXd z, uint64_
 // evenly spaced within each batch, at most `want[m]` of them in all: the start of block Krylov.
 // Reading a few batches costs a few per cent of a pass; rows held in memory are copied only.
 constexpr int kSampleBatches = 16;
-std::vector<Matrix> sample_rows(const RowBatches& batches, const std::vector<int64_t>& want,
-                                bool subtract_mean, Progress& progress) {
+std::vector<Matrix> sample_rows(const RowBatches& batches, const Ranks& ranks,
+                                const std::vector<int64_t>& want, bool subtract_mean,
+                                Progress& progress) {
     const int count = batches.matrices(), nb = std::min(batches.batches(), kSampleBatches);
-    std::vector<Matrix> out(count);
+    // The plan first, from the batches' row counts: which rows of which batch go where, the same
+    // on every rank whichever batches it reads.
+    struct Take {
+        int64_t rows = 0, share = 0, at = 0;  // the batch's rows, taken, first row of out
+    };
+    std::vector<std::vector<Take>> plan(nb, std::vector<Take>(count));
+    std::vector<int> sampled(nb);
     std::vector<int64_t> taken(count, 0);
-    for (int m = 0; m < count; ++m) out[m].resize(want[m], batches.cols(m));
-    std::vector<int64_t> first, counts;
-    std::vector<const float*> data;
-    std::vector<Matrix> block;
-    progress.begin("factorizing: sampling rows for the start", static_cast<uint64_t>(nb));
     for (int i = 0; i < nb; ++i) {
-        progress.poll();
-        const int b = static_cast<int>((int64_t(2 * i + 1) * batches.batches()) / (2 * nb));
-        const bool viewed = batches.view(b, first, data, counts);
-        if (!viewed) batches.read(b, first, block);
+        sampled[i] = static_cast<int>((int64_t(2 * i + 1) * batches.batches()) / (2 * nb));
         for (int m = 0; m < count; ++m) {
-            const int64_t n = viewed ? counts[m] : block[m].rows();
-            if (n == 0 || (!viewed && block[m].cols() != batches.cols(m))) continue;
-            const Eigen::Map<const Matrix> rows(viewed ? data[m] : block[m].data(), n,
-                                                batches.cols(m));
+            Take& t = plan[i][m];
+            t.rows = batches.batch_rows(sampled[i], m);
             // This batch's share of what is still wanted from the batches left.
-            const int64_t share =
-                std::min<int64_t>(n, (want[m] - taken[m] + (nb - i) - 1) / std::max(1, nb - i));
-            for (int64_t j = 0; j < share; ++j) {
-                auto row = out[m].row(taken[m]++);
-                row = rows.row((2 * j + 1) * n / (2 * share));
-                if (subtract_mean) row.array() -= static_cast<float>(row.cast<double>().mean());
-            }
+            t.share = std::min<int64_t>(t.rows,
+                                        (want[m] - taken[m] + (nb - i) - 1) / std::max(1, nb - i));
+            t.at = taken[m];
+            taken[m] += t.share;
         }
-        progress.advance();
     }
+    std::vector<Matrix> out(count);
+    for (int m = 0; m < count; ++m) out[m] = Matrix::Zero(taken[m], batches.cols(m));
+    int reads = 0;
+    for (int i = 0; i < nb; ++i) reads += ranks.owns(sampled[i]);
+    progress.begin("factorizing: sampling rows for the start", static_cast<uint64_t>(reads));
+    together(ranks.collective, [&] {
+        std::vector<int64_t> first, counts;
+        std::vector<const float*> data;
+        std::vector<Matrix> block;
+        for (int i = 0; i < nb; ++i) {
+            const int b = sampled[i];
+            if (!ranks.owns(b)) continue;
+            progress.poll();
+            const bool viewed = batches.view(b, first, data, counts);
+            if (!viewed) batches.read(b, first, block);
+            for (int m = 0; m < count; ++m) {
+                const Take& t = plan[i][m];
+                if (t.share == 0) continue;
+                const int64_t n = viewed ? counts[m] : block[m].rows();
+                if (n != t.rows || (!viewed && block[m].cols() != batches.cols(m)))
+                    fail(
+                        "factorization: batch {} gives matrix {} {} rows × {} columns, expected "
+                        "{} × {}",
+                        b, m, n, viewed ? batches.cols(m) : block[m].cols(), t.rows,
+                        batches.cols(m));
+                const Eigen::Map<const Matrix> rows(viewed ? data[m] : block[m].data(), n,
+                                                    batches.cols(m));
+                for (int64_t j = 0; j < t.share; ++j) {
+                    auto row = out[m].row(t.at + j);
+                    row = rows.row((2 * j + 1) * n / (2 * t.share));
+                    if (subtract_mean) row.array() -= static_cast<float>(row.cast<double>().mean());
+                }
+            }
+            progress.advance();
+        }
+    });
     progress.finish();
-    for (int m = 0; m < count; ++m) out[m].conservativeResize(taken[m], batches.cols(m));
+    for (int m = 0; m < count; ++m) ranks.sum(out[m]);
     return out;
 }
 
@@ -426,8 +501,8 @@ Eigen::MatrixXd start_block(const Matrix& sampled, int64_t cols, int64_t b, uint
     return z;
 }
 
-std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& options,
-                              const Shapes& shapes, Progress& progress) {
+std::vector<Svd> block_krylov(const RowBatches& batches, const Ranks& ranks,
+                              const SvdOptions& options, const Shapes& shapes, Progress& progress) {
     const int count = batches.matrices();
     const Transforms* maps = options.transforms;
     // A first block X₀ (from sampled rows) and q + 1 blocks after it, b columns each, within
@@ -443,7 +518,7 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
         block[m] = static_cast<int>(b);
         depth[m] = static_cast<int>(std::min<int64_t>(q + 1, smaller / b - 1));
         if (int64_t(depth[m]) * b < k)
-            return subspace_iteration(batches, options, shapes, progress);
+            return subspace_iteration(batches, ranks, options, shapes, progress);
         passes_depth = std::max(passes_depth, depth[m]);
     }
     const int total_passes = maps ? 1 + 2 * passes_depth : 1 + passes_depth;
@@ -459,7 +534,8 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
     std::vector<Matrix> operand(count), y(count), z(count);
     std::vector<int64_t> want(count);
     for (int m = 0; m < count; ++m) want[m] = std::min<int64_t>(4 * block[m], batches.rows(m));
-    const std::vector<Matrix> sampled = sample_rows(batches, want, options.subtract_mean, progress);
+    const std::vector<Matrix> sampled =
+        sample_rows(batches, ranks, want, options.subtract_mean, progress);
     for (int m = 0; m < count; ++m) {
         if (options.subtract_mean) means[m].assign(batches.rows(m), 0.0f);
         const int64_t w = int64_t(depth[m] + 1) * block[m];
@@ -484,7 +560,7 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
         // The first pass sums the energy too: in the transposed products' slices where they run
         // (every matrix has a second block), else on its own.
         const bool first_pass = i == 0, energy_in_slices = first_pass && fused;
-        pass(batches, options.subtract_mean, first_pass ? &means : nullptr,
+        pass(batches, ranks, options.subtract_mean, first_pass ? &means : nullptr,
              first_pass && !energy_in_slices ? &energy : nullptr, progress, stage(),
              [&](int m, int64_t first, const Rows& rows) {
                  if (i > depth[m]) return;
@@ -493,6 +569,13 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
                      multiply_transposed(rows, y[m], first, z[m],
                                          energy_in_slices ? &energy[m] : nullptr);
              });
+        for (int m = 0; m < count; ++m) {
+            if (first_pass) ranks.sum(means[m]);
+            if (i > depth[m]) continue;
+            ranks.sum(y[m]);
+            if (fused && i < depth[m]) ranks.sum(z[m]);
+        }
+        if (first_pass) ranks.sum(energy);
         for (int m = 0; m < count; ++m) {
             if (i > depth[m]) continue;
             if (maps) maps->left(m, y[m], false);
@@ -507,10 +590,12 @@ std::vector<Svd> block_krylov(const RowBatches& batches, const SvdOptions& optio
                 maps->left(m, operand[m], true);
                 z[m] = Matrix::Zero(block[m], batches.cols(m));  // zᵀ
             }
-            pass(batches, options.subtract_mean, nullptr, nullptr, progress, stage(),
+            pass(batches, ranks, options.subtract_mean, nullptr, nullptr, progress, stage(),
                  [&](int m, int64_t first, const Rows& rows) {
                      if (i < depth[m]) multiply_transposed(rows, operand[m], first, z[m]);
                  });
+            for (int m = 0; m < count; ++m)
+                if (i < depth[m]) ranks.sum(z[m]);
         }
         for (int m = 0; m < count; ++m) {
             if (i >= depth[m]) continue;
@@ -575,9 +660,10 @@ std::vector<Svd> randomized_svd(const RowBatches& batches, const SvdOptions& opt
     // OpenBLAS on one thread while it runs the products (not at all with btfkit's kernels).
     std::optional<blas::SerialBlas> serial;
     if (thin::kernel() == thin::Kernel::kBlas) serial.emplace();
+    const Ranks ranks(batches);
     return options.method == SvdMethod::kBlockKrylov
-               ? block_krylov(batches, options, shapes, progress)
-               : subspace_iteration(batches, options, shapes, progress);
+               ? block_krylov(batches, ranks, options, shapes, progress)
+               : subspace_iteration(batches, ranks, options, shapes, progress);
 }
 
 std::vector<Factors> untransformed_factors(const RowBatches& batches, const Transforms& transforms,
@@ -610,13 +696,18 @@ std::vector<Factors> untransformed_factors(const RowBatches& batches, const Tran
     // OpenBLAS on one thread while it runs the products (not at all with btfkit's kernels).
     std::optional<blas::SerialBlas> serial;
     if (thin::kernel() == thin::Kernel::kBlas) serial.emplace();
-    pass(batches, centred, nullptr, nullptr, progress, "factorizing: untransforming",
+    const Ranks ranks(batches);
+    pass(batches, ranks, centred, nullptr, nullptr, progress, "factorizing: untransforming",
          [&](int m, int64_t first, const Rows& rows) {
              if (keep[m] == 0) return;
              multiply_rows(rows, right[m], first, out[m].a);
              multiply_transposed(rows, left[m], first, out[m].b);
          });
-    for (Factors& f : out) f.b.transposeInPlace();
+    for (Factors& f : out) {
+        ranks.sum(f.a);
+        ranks.sum(f.b);
+        f.b.transposeInPlace();
+    }
     return out;
 }
 
@@ -641,6 +732,13 @@ Svd exact_svd(const Matrix& matrix, int rank, bool subtract_mean) {
     return out;
 }
 
+int64_t RowBatches::batch_rows(int batch, int matrix) const {
+    std::vector<int64_t> first;
+    std::vector<Matrix> out;
+    read(batch, first, out);
+    return out.at(matrix).rows();
+}
+
 MemoryRows::MemoryRows(std::vector<const Matrix*> matrices, int batch_rows)
     : m_matrices(std::move(matrices)), m_batch_rows(std::max(1, batch_rows)) {
     int64_t rows = 0;
@@ -658,6 +756,12 @@ void MemoryRows::read(int batch, std::vector<int64_t>& first, std::vector<Matrix
         first[m] = begin;
         out[m] = m_matrices[m]->middleRows(begin, end - begin);
     }
+}
+
+int64_t MemoryRows::batch_rows(int batch, int matrix) const {
+    const int64_t rows = m_matrices[matrix]->rows();
+    const int64_t begin = std::min<int64_t>(int64_t(batch) * m_batch_rows, rows);
+    return std::min<int64_t>(begin + m_batch_rows, rows) - begin;
 }
 
 bool MemoryRows::view(int batch, std::vector<int64_t>& first, std::vector<const float*>& data,

@@ -24,6 +24,16 @@
 /// column products in fixed column slices, each by OpenBLAS on one thread (util/blas.h), sums in
 /// a fixed order, independent of the number of threads.
 ///
+/// Across ranks (docs/distributed.md): with a current_collective() of N > 1 ranks
+/// (util/collective.h), each rank reads only its contiguous share of the batches. The products
+/// with the columns' side (Mᵀ·Q, the texel side, cols × l) are summed over the ranks; the row
+/// side's products (M·X, rows × l, small next to it) are completed by the same sum, every rank
+/// holding zeros in the rows it did not read, which makes them exact copies of what one process
+/// computes. Every orthogonalization and small SVD then runs on identical thin matrices on every
+/// rank, with no communication of its own. Results differ from one process's only by the order
+/// in which the ranks' partial texel-side sums are added (float rounding), and are the same bits
+/// in every run with as many ranks; with one rank they are one process's bits.
+///
 /// Optional linear maps around the streamed matrices (Transforms) factorize L·M·Rᵀ instead of M
 /// without ever forming it: only the thin sketches are mapped (the perceptual codec's CSF filters,
 /// Guthe et al. 2009 §5). untransformed_factors() then returns to M's space in one more pass.
@@ -54,6 +64,9 @@ class RowBatches {
     /// matrix m (out[m] may have no rows). Called from one thread at a time; may use worker
     /// threads inside. `first` and `out` are resized to matrices().
     virtual void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const = 0;
+    /// The number of rows of matrix `matrix` that read(batch) gives, without reading them: block
+    /// Krylov plans the rows it samples before reading any. The default reads the batch.
+    virtual int64_t batch_rows(int batch, int matrix) const;
     /// Rows held in memory already: like read(), but gives pointers to them instead of copies
     /// (row-major, contiguous, cols(m) floats per row; null where a matrix has no rows in the
     /// batch). Returns false (the default) when the rows must be read.
@@ -154,6 +167,7 @@ class MemoryRows final : public RowBatches {
     void read(int batch, std::vector<int64_t>& first, std::vector<Matrix>& out) const override;
     bool view(int batch, std::vector<int64_t>& first, std::vector<const float*>& data,
               std::vector<int64_t>& rows) const override;
+    int64_t batch_rows(int batch, int matrix) const override;
 
   private:
     std::vector<const Matrix*> m_matrices;

@@ -186,6 +186,7 @@ class CopiedRows final : public RowBatches {
         ++reads;
         m_rows.read(batch, first, out);
     }
+    int64_t batch_rows(int batch, int m) const override { return m_rows.batch_rows(batch, m); }
     mutable int reads = 0;
 
   private:

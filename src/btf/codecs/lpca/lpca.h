@@ -66,6 +66,10 @@ class ClusterRows final : public factor::RowBatches {
     int batches() const override { return m_rows.batches(); }
     void read(int batch, std::vector<int64_t>& first,
               std::vector<factor::Matrix>& out) const override;
+    int64_t batch_rows(int batch, int matrix) const override {
+        return m_rows.batch_rows(batch,
+                                 m_rows.matrix(matrix / static_cast<int>(m_texels.size()), 0));
+    }
 
   private:
     factor::SourceRows m_rows;
