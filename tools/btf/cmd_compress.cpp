@@ -213,7 +213,8 @@ Command register_compress(CLI::App& app, GlobalOptions& global) {
             if (world) {
                 std::string list;
                 for (size_t r = 0; r < sent.size(); ++r)
-                    list += (r ? ", " : "") + human_bytes(std::stod(sent[r]));
+                    list += fmt::format("{}{} B ({})", r ? ", " : "", sent[r],
+                                        human_bytes(std::stod(sent[r])));
                 std::printf("  sent by each rank: %s\n", list.c_str());
             }
         }};

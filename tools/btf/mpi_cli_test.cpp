@@ -87,8 +87,7 @@ TEST_F(Mpi, RanksAgreeWithOneProcessAndRepeatTheirBits) {
                           b = at(fmt::format("r{}b.btfpkg", ranks));
         test::CliResult r = launch(ranks, "compress " + at("m.h5") + options + a);
         ASSERT_EQ(r.code, 0) << r.output;
-        if (ranks > 1)
-            EXPECT_THAT(r.output, HasSubstr(fmt::format("on {} MPI ranks", ranks)));
+        if (ranks > 1) EXPECT_THAT(r.output, HasSubstr(fmt::format("on {} MPI ranks", ranks)));
         r = launch(ranks, "compress " + at("m.h5") + options + b);
         ASSERT_EQ(r.code, 0) << r.output;
         // Bitwise the same for as many ranks; one rank is one process.
@@ -177,8 +176,8 @@ TEST_F(Mpi, CompressManyWritesTheGoodMaterialsAndReportsTheBadOne) {
     test::write_file(at("bad.h5"), "not an HDF5 file");
     test::write_file(at("list.txt"), "# the database\nm.h5\nw.h5\n\nbad.h5\nb.h5\n");
     const std::string dir = at("many");
-    const test::CliResult r = launch(2, "compress-many " + at("list.txt") +
-                                            " -p components=4 --no-error -o " + dir);
+    const test::CliResult r =
+        launch(2, "compress-many " + at("list.txt") + " -p components=4 --no-error -o " + dir);
     EXPECT_EQ(r.code, 1) << r.output;
     EXPECT_THAT(r.output, HasSubstr("3 of 4 materials written to " + dir + " by 2 MPI ranks"));
     EXPECT_THAT(r.output, HasSubstr("failed: " + at("bad.h5")));

@@ -1,7 +1,7 @@
-// The btf command's MPI world as a btf::Collective (mpi_world.h). Sums add the ranks' values in rank
-// order: each rank sums one slice of the data from every rank's copy (MPI_Alltoallv), then every
-// rank gathers the summed slices (MPI_Allgatherv); bytes moved per rank are 2 (N − 1) / N of the
-// data, as a ring all-reduce, and the result does not depend on how MPI schedules its messages.
+// The btf command's MPI world as a btf::Collective (mpi_world.h). Sums add the ranks' values in
+// rank order: each rank sums one slice of the data from every rank's copy (MPI_Alltoallv), then
+// every rank gathers the summed slices (MPI_Allgatherv); bytes moved per rank are 2 (N − 1) / N of
+// the data, as a ring all-reduce, and the result does not depend on how MPI schedules its messages.
 
 #include "mpi_world.h"
 
@@ -98,7 +98,8 @@ class MpiCollective final : public Collective {
                     MPI_CHAR, 0, m_comm);
         if (m_rank != 0) m_bytes += static_cast<uint64_t>(length);
         std::vector<std::string> out;
-        for (size_t r = 0; r < lengths.size(); ++r) out.push_back(all.substr(offsets[r], lengths[r]));
+        for (size_t r = 0; r < lengths.size(); ++r)
+            out.push_back(all.substr(offsets[r], lengths[r]));
         return out;
     }
 
@@ -140,7 +141,8 @@ class MpiCollective final : public Collective {
             }
             MPI_Allgatherv(slice.data(), mine, type, data + start, counts.data(), offsets.data(),
                            type, m_comm);
-            m_bytes += sizeof(T) * static_cast<uint64_t>(length - mine + int64_t(mine) * (m_size - 1));
+            m_bytes +=
+                sizeof(T) * static_cast<uint64_t>(length - mine + int64_t(mine) * (m_size - 1));
         }
     }
 
@@ -195,9 +197,10 @@ void abort_world(int code) {
 
 MpiSession::MpiSession() {
     if (launcher_size() > 1)
-        fail("this btf was built without MPI, but a launcher started it as one of {} ranks: "
-             "build with libopenmpi-dev installed (docs/distributed.md), or run it without mpirun",
-             launcher_size());
+        fail(
+            "this btf was built without MPI, but a launcher started it as one of {} ranks: "
+            "build with libopenmpi-dev installed (docs/distributed.md), or run it without mpirun",
+            launcher_size());
 }
 
 MpiSession::~MpiSession() = default;
