@@ -385,6 +385,38 @@ def report(sweep, materials, args):
               f"≤ ½ old {sum(rule(counted(r, mi, 'old'), half) for _, r, mi in summary)} of {len(summary)}, "
               f"smaller than mlvq {sum(rule(counted(r, mi, 'mlvq'), below) for _, r, mi in summary)} of "
               f"{len(summary)}.")
+    if args.btf_cielab:
+        cielab_summary(sweep, materials)
+
+
+def cielab_summary(sweep, materials):
+    """The same comparison in BTF-CIELab: the fronts of the points measured in it, and at each old
+    (mlvq) front point the new front's size for the same BTF-CIELab."""
+    print()
+    print("In BTF-CIELab (one viewing condition), at equal BTF-CIELab:")
+    print()
+    print("| material | old front points compared | new ≤ ½ old at | new / old | mlvq points compared "
+          "| new smaller at | new / mlvq |")
+    print("|---|---|---|---|---|---|---|")
+    for m in materials:
+        rs = [r for (mm, _), r in sweep.results.items() if mm == m and listed(r["config"]) and
+              "btf_cielab" in r]
+        fronts = {f: front([r for r in rs if family(r["config"]) == f], "btf_cielab")
+                  for f in ["old", "new", "mlvq"]}
+        cells = []
+        for f, ok in [("old", lambda x: x <= 0.5), ("mlvq", lambda x: x < 1)]:
+            ratios, missed = [], 0
+            for p in fronts[f]:
+                n = size_at(fronts["new"], p["btf_cielab"], "btf_cielab")
+                if n is not None:
+                    ratios.append(n / p["bytes"])
+                elif fronts["new"] and fronts["new"][-1]["bytes"] >= 0.45 * p["bytes"]:
+                    missed += 1  # beyond the reach of a new package of about half its size
+            span = "—" if not ratios else "%.2f–%.2f" % (min(ratios), max(ratios))
+            if missed:
+                span += f" ({missed} not reached)"
+            cells += [str(len(ratios) + missed), str(sum(ok(x) for x in ratios)), span]
+        print(f"| {m} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
