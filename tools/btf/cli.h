@@ -105,6 +105,13 @@ struct EncodeOptions {
     bool no_error = false;
 };
 void add_encode_options(CLI::App& command, EncodeOptions& options);
+/// The arguments of compress and compress-many.
+struct CompressArgs {
+    std::vector<std::string> inputs;
+    std::string output, views;
+    OpenOptions open;
+    EncodeOptions encode;
+};
 /// The options checked and resolved for `inputs` inputs (throws btf::Error naming the option).
 struct Encoder {
     const Codec* codec = nullptr;

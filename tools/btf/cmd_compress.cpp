@@ -102,13 +102,7 @@ Package encode_one(const Encoder& encoder, const BtfSource& source, Progress& pr
 }
 
 Command register_compress(CLI::App& app, GlobalOptions& global) {
-    struct Args {
-        std::vector<std::string> inputs;
-        std::string output, views;
-        OpenOptions open;
-        EncodeOptions encode;
-    };
-    auto args = std::make_shared<Args>();
+    auto args = std::make_shared<CompressArgs>();
     CLI::App* cmd = app.add_subcommand(
         "compress",
         "Compress a BTF into a btfkit package (.btfpkg) with a codec (`btf codecs` lists them), "

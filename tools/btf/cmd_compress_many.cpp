@@ -107,13 +107,7 @@ std::vector<int> assign(const std::vector<double>& sizes, int ranks) {
 }  // namespace
 
 Command register_compress_many(CLI::App& app, GlobalOptions& global) {
-    struct Args {
-        std::vector<std::string> inputs;
-        std::string output, views;
-        OpenOptions open;
-        EncodeOptions encode;
-    };
-    auto args = std::make_shared<Args>();
+    auto args = std::make_shared<CompressArgs>();
     CLI::App* cmd = app.add_subcommand(
         "compress-many",
         "Compress many BTFs, one package each (DIR/NAME.btfpkg), with one codec and its options; "
