@@ -94,11 +94,11 @@ def main():
     # start sums 4b sampled rows × texels; the energy (8 bytes) once. A sum of n floats sends
     # 2 (N − 1) / N · n · 4 bytes per rank (2 ranks: n · 4). Counted by btf: the payloads of
     # sums, broadcasts and gathers (not the agreements' two integers), up to its report.
-    b = 28
-    per = {"pass 1 (Y and Z)": (ROWS_81 + COLS_256) * b * 4,
-           "pass 2 (Y and Z)": (ROWS_81 + COLS_256) * b * 4,
-           "pass 3 (Y)": ROWS_81 * b * 4,
-           "start (4b sampled rows)": 4 * b * COLS_256 * 4,
+    block = 28
+    per = {"pass 1 (Y and Z)": (ROWS_81 + COLS_256) * block * 4,
+           "pass 2 (Y and Z)": (ROWS_81 + COLS_256) * block * 4,
+           "pass 3 (Y)": ROWS_81 * block * 4,
+           "start (4b sampled rows)": 4 * block * COLS_256 * 4,
            "the energy ‖M‖² (one double)": 8}
     print("\n| what is summed (2 ranks) | bytes each rank sends |\n|---|---|")
     for k, v in per.items():
@@ -134,7 +134,7 @@ def main():
     def one_material(n):
         share = math.ceil(views / n) / views  # the slowest rank's views
         stream = s_node * values * share + passes * source_bytes * share / disk
-        sums = (2 * (ROWS_151 + COLS_400) * b + ROWS_151 * b + 4 * b * COLS_400) * 4
+        sums = (2 * (ROWS_151 + COLS_400) * block + ROWS_151 * block + 4 * block * COLS_400) * 4
         comm = 0 if n == 1 else 2 * (n - 1) / n * sums / network + 4 * 2 * (n - 1) * latency
         return stream + r_node * sides + comm, comm
 
