@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # btfkit — the two commands of the quick start are `make demo` and `make test`.
 # Both install what they need first (scripts/bootstrap.sh, idempotent).
 
@@ -71,8 +72,10 @@ SOURCES = $(shell git ls-files -- '*.cpp' '*.h' 2>/dev/null)
 format:
 	clang-format -i $(SOURCES)
 
+## Formatting, and the licence line of every source file (scripts/check_spdx.sh).
 format-check: bootstrap
 	@clang-format --dry-run -Werror $(SOURCES) && echo "format-check: $(words $(SOURCES)) files clean"
+	@bash scripts/check_spdx.sh
 
 bench: build
 	@bash scripts/bootstrap.sh --bench

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Helpers shared by the codec benchmark programs (a header, so that the bench/*.cpp glob does not
 // turn it into a program of its own): an in-memory source, wall-clock timing, random directions

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # BSVTF benchmarks for docs/benchmarks.md (issue 8), with the headless simulator:
 #   bash bench/bsvtf_bench.sh [build-dir] [out-dir] [texels] [materials]
 # Makes `materials` synthetic materials of texels² (7 presets, seeds 1, 2, …) on a reduced

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // BTF-CIELab cost at realistic size (docs/benchmarks.md, "Quality (issue 4)"): a synthetic
 // material as the reference (written to a btfkit HDF5 file first, not timed) against its fmf
 // compression (the package decoded on the fly, as `btf quality REF PKG` does), over the 5 × 5

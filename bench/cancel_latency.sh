@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # How long `btf` takes to stop after SIGTERM, at several stages of real work: the time from the
 # signal to the process's exit, its exit code, and whether anything was left in the output folder.
 # Usage: bench/cancel_latency.sh [path/to/btf]   (prints a Markdown table for docs/reliability.md)

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Coded factors against f16 at half the bytes (issue 23, first measurements; docs/benchmarks.md,
 # "Rate–distortion with coded factors"). For each synthetic preset at SIZE² × 81 × 81 and the real
 # measured view: fmf with f16 factors at C = 8 and 16 (rmse) or 4, 8 and 16 (de2000), then fmf

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Rate–distortion of coded factor storage against the old storages and mlvq (issue 23's
 acceptance; docs/benchmarks.md, "Rate–distortion with coded factors").
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // The demo scene of scripts/demo.sh as the renderer benchmarks build it (render_bench,
 // filter_bench): a sphere and a cloth drape of one BTF material on a grey diffuse floor under the

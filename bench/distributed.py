@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Distributed compression (docs/benchmarks.md, "Distributed"; docs/distributed.md).
 
 Measures `btf compress` of one synthetic 256² × 81 × 81 material (woven_fabric, btfkit HDF5) with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Evaluation throughput of a decoded fmf material (FactorMaterial): C = 32 components, rgb mode,
 // of a synthetic woven_fabric (default 256² texels × 81 views × 81 lights), encoded here from the
 // synthetic source with power-iterations=0 by default (2 passes instead of 8: the cost of an

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """The Eckart–Young optimum of a large matrix: the exact relative error of its best rank-C
 approximation, for bench/fmf_speed.cpp's --exact (docs/benchmarks.md, issue 22).
 

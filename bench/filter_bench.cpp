@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Stochastic against deterministic filtering in the renderer at equal time (docs/benchmarks.md,
 // "Stochastic filtering"): for each package given, the demo scene of scripts/demo.sh (a sphere
 // and a cloth drape of the material on a grey floor under the procedural sky, path tracing with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Accuracy of the fmf codec's streaming randomized SVD against the exact truncated SVD of the same
 // matrix (Eckart–Young: no rank-C approximation has a smaller Frobenius error).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Compression speed of the fmf codec on a full-size material (default: synthetic woven_fabric,
 // 256² texels × 81 views × 81 lights, C = 64 components, rgb mode: a 19683 × 65536 matrix).
 //

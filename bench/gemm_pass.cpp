@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The products of one randomized-SVD pass at the shapes fmf streams (issue 22, groundwork): a
 // batch A of b rows × 65536 texel columns times the thin sketch, Y = A·X (X: 65536 × l) and
 // Z = Aᵀ·Q (Q: b × l), l = 74 (C = 64 + oversampling 10), float32. Three ways:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Write and read speed of btfkit's HDF5 form (btf::h5) for a 64×64-texel BTF with 81 views × 81
 // lights (UBO2003 sampling; 322 MB as float32 RGB). Prints a Markdown table for
 // docs/benchmarks.md. Speeds are in MB/s of the raw BTF as float32 RGB (raw_bytes()), so half and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Angular interpolation throughput: AngularInterpolator::weights() on random directions (grid
 // lookup, four or eight at a time with weights4(), and the brute-force search over all triangles
 // as the reference), and the full 6-D lookup (≤ 3 views × ≤ 3 lights × bilinear) with a trivial

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Throughput of the generic light sampler (btf/core/light_sampler.h) on a decoded fmf material
 // (FactorMaterial): C = 32 components, rgb mode, of a synthetic material (default woven_fabric,
 // 256² texels × 81 views × 81 lights), encoded here with power-iterations=0 by default (the cost

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The mlvq codec on a synthetic material (default woven_fabric, 256² texels × 81 views × 81
 // lights): encode time by stage, code-book sizes and compression ratios C.R.1–C.R.4, the RMSE
 // over every sample, and single-thread evaluation throughput for random queries (uniform uv and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // mlvq resampling throughput: a synthetic material on the UBO2003 sampling (81 views × 81 lights)
 // resampled onto an MLVQ grid (default 11 × 11 × 7 × 16 = 13552 samples per texel and channel).
 // Prints the time to build the resampling table, the time to read the texel rows (the synthetic

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Code-vector search of the mlvq code-books (src/btf/codecs/mlvq/vq.h): queries per second of
 // Codebook::find() (the exact index and, for mssim, its exact filters) against
 // find_brute_force() in the same run, on luminance slices of a synthetic material sampled on

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # mlvq against fmf and lpca at comparable package size (docs/benchmarks.md, "mlvq"): for each
 # material compress with mlvq at a threshold, then with fmf and lpca at the component count whose
 # package is closest in size, and measure all three with `btf quality` (RMSE, MSSIM on Y,

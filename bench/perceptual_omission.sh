@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # High-frequency omission of the perceptual codec (docs/benchmarks.md, "High-frequency
 # omission"): package size and BTF-CIELab error against the base quality bq, with spatial levels
 # only, angular levels only, and both. Usage:

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Perceptually guided compression against plain fmf at equal package size, judged by BTF-CIELab
 # (docs/benchmarks.md, "Quality (issue 4)"). For each material: compress with `perceptual` at
 # C components, then with `fmf` at the component count whose package is closest in size, and

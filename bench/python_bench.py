@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """The Python module against the C++ it wraps, in the same run (docs/benchmarks.md, "Python").
 
 1. Evaluation: Material.eval on 2^20 random queries from NumPy (uv uniform, both directions

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Throughput of quality::compare(): texels per second (one texel = one RGB sample of one image)
 // for each measure alone and for all four together, comparing a synthetic material held in memory
 // (default woven_fabric, 128² texels × 81 views × 81 lights) with the same plus uniform noise of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Rate–distortion of every compiled-in codec (btf::codecs()) at several sizes, on the real
 // measured UBO2003 view (1 view × 81 lights, 256²) and on synthetic materials (default
 // woven_fabric and leather, 128² × 81 × 81).

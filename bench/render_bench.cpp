@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The renderer with BTF materials (docs/benchmarks.md, "Renderer"): for synthetic presets
 // (64² texels × 81 × 81 by default) compressed with fmf (C = 16, rgb) and mlvq (default
 // threshold), on the demo scene (a sphere and a cloth drape on a floor under a procedural sky):

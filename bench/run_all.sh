@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Runs every benchmark behind docs/benchmarks.md and prints its raw output. Usage:
 #   bash bench/run_all.sh [build-dir]        (make bench does this with build/release)
 # Timings need a quiet machine: nothing else should run meanwhile.

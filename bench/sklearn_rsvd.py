@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """The reference of bench/fmf_speed.cpp: scikit-learn's randomized SVD of the same matrix.
 
 Usage: sklearn_rsvd.py MATRIX.npy OUT_PREFIX COMPONENTS POWER_ITERATIONS OVERSAMPLING

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Evaluation and sampling throughput before and after issue 20 (docs/benchmarks.md, "Stochastic
 # filtering"): `btf bench` of the same packages by two builds of `btf`, alternated, best of
 # ROUNDS rounds of --repeat 5 each (the machine is shared: the best run is the least disturbed).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // stream_load: many viewers streaming at once from one `btf serve` process.
 //
 // Starts `btf serve PKG --port 0` as a child process, reads its material list, fetches the package

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Speed of the synthetic BTF sources.
 //
 // BM_FullBtf128/<preset>: every image of a 128² × 81 views × 81 lights BTF (6561 images), read

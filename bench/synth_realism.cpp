@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Realism check of the synthetic presets against the real measured UBO2003 view.
 //
 // For each preset, two views (θ = 0° and θ = 45°, φ = 0°) of the ubo81 × ubo81 sampling: the

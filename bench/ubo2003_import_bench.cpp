@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UBO2003 import throughput on the real measured view (../shared/data/ubo2003-proposte-view000:
 // 81 progressive JPEGs, 256×256): opening (names + every image header), and reading all 81
 // images through BtfSource::read_image (read the JPEG bytes, decode, sRGB → linear float), from

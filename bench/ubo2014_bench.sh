@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # UBO2014 files as they are (docs/benchmarks.md, "Viewer: every codec"):
 #   bash bench/ubo2014_bench.sh [build-dir] [out-dir] [size] [components] [runs]
 # For a DFMF file of size² texels on the 151-direction dome with `components` half-float

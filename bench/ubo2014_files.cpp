@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UBO2014 files as they are (docs/benchmarks.md, "Viewer: every codec"): writes the benchmark's
 // DFMF file, and measures evaluation on such a file.
 //

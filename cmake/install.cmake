@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # ---- installing btfkit: `cmake --install build/release --prefix P` (docs/library.md) -------------
 # Included at the end of CMakeLists.txt, once every target exists. What goes where:
 #

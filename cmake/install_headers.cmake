@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Installs the public headers: the include closure of btf/btf.h, as the compiler listed it into
 # the depfile BTFKIT_HEADER_LIST ("target: header header \ ..."). Run by `cmake --install`
 # (install(SCRIPT) in cmake/install.cmake, which sets BTFKIT_HEADER_LIST, BTFKIT_HEADER_ROOT

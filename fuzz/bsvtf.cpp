@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // BSVTF files (bsvtf/file.h): read_bsvtf() on any package (checksums recomputed by the package
 // mutator), then what a renderer does with it: decode tiles coarsest first, each against its
 // decoded parent, and evaluate the material from the angular factors and the coarsest tiles; for

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF tile decoder (bsvtf/tile_codec.h): decode_tile() on any payload, for a geometry and
 // prediction chosen by the first two bytes (support/tile_input.h).
 #include "btf/bsvtf/tile_codec.h"

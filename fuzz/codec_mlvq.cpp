@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The mlvq codec's open() on any package (checksums recomputed by the package mutator), then a
 // few evaluations of the material it returns.
 #include "fuzz/support/fuzz.h"

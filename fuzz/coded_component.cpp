@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The coded factor decoder (codecs/factor/coded.h): get_component() on any payload, for a shape
 // chosen by the first two bytes: a's rows (1–96, so rows of 3 channels and others) and b either
 // an image of 1–16 × 1–16 texels or, with the high bit of the second byte, as many plain values.

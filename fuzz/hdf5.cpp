@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btfkit HDF5 files (io/h5.h) from an in-memory image: h5::open_memory() of any bytes, then a
 // few images read from the source.
 #include "btf/io/h5.h"

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # fuzz/make_corpus.sh [BUILD]: rebuilds the seed corpora fuzz/corpus/<target>/ and the fixtures
 # in fuzz/data/ from valid files written by the project's own writers: `btf synth` (HDF5),
 # `btf compress` with every codec (packages), `btf bsvtf`, `btf convert` (UBO2014 DFMF), and

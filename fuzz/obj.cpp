@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Wavefront OBJ meshes (render/mesh.h): load_obj() of any text (written to a scratch file: the
 // reader takes a path). What it returns must be consistent: whole triangles, indices in range and
 // every per-vertex array of the vertex count.

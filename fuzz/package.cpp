@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The package container (io/package.h): decode_package() on any bytes. What it accepts must
 // survive a round trip: encoded again (zstd and raw) and decoded, the same sections come back.
 #include <cstdlib>

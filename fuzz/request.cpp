@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The server's request rules (stream/request.h): decode_target(), parse_range() and
 // check_websocket_handshake() on a request written as HTTP text ("GET /a HTTP/1.1", then
 // "Name: value" lines), and the promises their documentation makes checked on every answer.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # fuzz/run.sh BUILD SECONDS [TARGET...]: runs each libFuzzer target BUILD/fuzz_<target> (every
 # fuzz/*.cpp when none is named) for SECONDS from fuzz/corpus/<target>/, then prints per target the
 # executions, executions per second, new inputs and crashes. `make fuzz` calls it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Scene files (render/scene_file.h): parse_scene() of any text, with relative paths resolving
 // to fuzz/data/ (a tiny OBJ mesh and a tiny package that make_corpus.sh writes there).
 #include "btf/render/scene_file.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UBO2003 materials as zip archives (io/ubo2003.h): ubo2003::open() of any bytes as an archive
 // (written to a scratch file: the reader takes a path), then a few images read from it.
 // Structure-aware mutation (support/zip_mutator.h) keeps the entries' CRCs right, so that changed

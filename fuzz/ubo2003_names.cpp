@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UBO2003 image names (io/ubo2003.h): a folder made from the input, one file per line named by
 // the line (view folders included: "tv000_pv000/00000 tl000 pl000 tv000 pv000.jpg"), each a tiny
 // valid image; ubo2003::open() of the folder, then a few images read from it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Bonn UBO2014 .btf files (io/ubo2014.h): ubo2014::read() of any bytes (written to a scratch
 // file: the reader takes a path), then the factorization as a Material (the fmf evaluator of its
 // factors, and the RGB-interpolating one that cosine-weighted files use) and as a BtfSource, and

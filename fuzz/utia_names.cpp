@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UTIA image-set names (io/utia.h): a folder made from the input, one file per line named by the
 // line ("tl045_pl020_tv000_pv000.png"), each a tiny valid image; utia::open() of the folder, then
 // a few images read from it.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Installs the Debian packages btfkit needs to build, test and run its demo, and the web viewer's
 # npm packages. Idempotent: when everything is present it changes nothing and needs no network.
 # Run as root or with sudo.

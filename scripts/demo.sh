@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The main job of `make demo`: btf serve streams btfkit's built-in demo material to the web viewer
 # (its URL is printed as soon as it is up, and it serves until Ctrl-C). Meanwhile the script
 # synthesizes the default material, describes it, writes pictures of it at measured and

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Renders every synthetic preset on a sphere, a cloth drape and a torus under the procedural sky
 # and writes docs/images/gallery/<preset>.png plus docs/gallery.md. Each material is synthesized
 # at 128² texels, compressed with fmf (32 components) and rendered by `btf render` (path tracing,

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # CTest's Install.consumer and Install.python (cmake/install.cmake): installs this build into a
 # fresh temporary prefix and uses it there as a user would.
 #

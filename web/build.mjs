@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Bundles the viewer: node build.mjs [OUT] (default web/dist). Writes OUT/index.html,
 // OUT/viewer.js (the page, an ES module) and OUT/worker.js (the decoding worker, its own bundle).
 import { build } from "esbuild";

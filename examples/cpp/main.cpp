@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btfkit from C++, start to end: synthesize a material, compress it, evaluate the compressed
 // material, and measure what the compression lost. Everything used here comes from one header,
 // <btf/btf.h>; docs/library.md describes the API and how to build this program against an

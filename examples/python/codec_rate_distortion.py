@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Compress one material with three codecs and plot rate against perceptual error.
 
 Each codec is run at two settings; every package is measured against the original with

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Evaluate a compressed material on a grid of surface positions and save it as a picture.
 
 Material.eval(uv, wi, wo) answers any number of random-access queries at once: here one query per

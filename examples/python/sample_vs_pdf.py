@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Draw light directions with Material.sample and check them against Material.pdf.
 
 A renderer that samples a BTF draws light directions wi for a fixed surface point and view from

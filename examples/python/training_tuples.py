@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Make (uv, wi, wo, value) training tuples from a material for a learning pipeline.
 
 Neural and other learned BTF models train on tuples of a surface position, a light direction, a

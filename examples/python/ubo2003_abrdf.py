@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Read a Bonn UBO2003 material and plot the ABRDF of one texel.
 
 A texel's apparent BRDF (ABRDF) is the BTF at one fixed surface point: a matrix of view

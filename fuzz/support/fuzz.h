@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// What the fuzz targets in fuzz/ share. A target is one fuzz/<name>.cpp that defines
 /// LLVMFuzzerTestOneInput; it is built twice (CMakeLists.txt): as a libFuzzer program

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // fuzz_make_seeds OUT: writes the seed inputs that no `btf` command writes, with the project's
 // own writers, into OUT/<target>/ (fuzz/make_corpus.sh runs it):
 //   bsvtf_tile       tiles encoded by encode_tile (DCT and lossless, with and without parent)

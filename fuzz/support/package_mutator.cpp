@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "fuzz/support/package_mutator.h"
 
 #include <xxhash.h>

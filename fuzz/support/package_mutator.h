@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Structure-aware mutation of btfkit packages (io/package.h). A package carries an XXH64 of its
 /// JSON header and one of every section, so nearly every byte-level mutation of a valid package

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The main() of the replay programs (replay_<target>): runs every file of the folders (or files)
 // named on the command line through the target's LLVMFuzzerTestOneInput, in name order, so that
 // `make test` replays each fuzz corpus and every crash reproducer in the normal build. A missing

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The input of the bsvtf_tile target: two bytes that choose what the decoder is told, then the
 /// tile payload (bsvtf/tile_codec.h) itself.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "fuzz/support/zip_mutator.h"
 
 #include <zip.h>

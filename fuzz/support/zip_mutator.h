@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Structure-aware mutation of zip archives (the UBO2003 reader's input). libzip checks each
 /// entry's CRC-32 as it reads it, so a byte-level mutation of an entry's data only reaches that

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """btfkit: measured material appearance (Bidirectional Texture Functions) from Python.
 
     import btfkit as bk

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # Type stubs of the btfkit module (the native part is _btfkit). Arrays are NumPy arrays; inputs
 # of any real dtype are converted, outputs are float32 values and float64 directions and pdfs.
 from os import PathLike

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The btfkit Python module's native part (_btfkit): sources, synthesis, compression and
 // materials over NumPy arrays. python/btfkit/__init__.py re-exports it with the pure-Python
 // helpers; docs/python.md describes the API.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """decompress, render, several materials in one package, and what every long call shares:
 progress callbacks, cancellation and Ctrl-C, with nothing left behind."""
 import os

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// btfkit's public API in one include: `#include <btf/btf.h>`.
 ///

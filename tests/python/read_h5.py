@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Reads a btfkit HDF5 file with h5py exactly as docs/formats.md shows (run by src/btf/io/h5_test).
 
 Usage: read_h5.py FILE VIEW LIGHT X Y

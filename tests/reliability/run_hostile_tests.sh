@@ -1,4 +1,5 @@
 #!/bin/bash
+# SPDX-License-Identifier: MIT
 # Runs the hostile-input tests of docs/reliability.md from a build folder (the argument: this
 # checkout's build/release, or a build of older code with these tests copied in, as that page
 # describes), one test per process, under an 8 GB address-space cap and a 300 s limit, and prints

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // End-to-end tests of `btf bsvtf`: an fmf package becomes a BSVTF file with a summary line of
 // sizes and error; other inputs give one line, exit 1 and no output file.
 

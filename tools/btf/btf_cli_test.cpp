@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // End-to-end tests of the `btf` command: what a user types, what they get back.
 
 #include <fmt/format.h>

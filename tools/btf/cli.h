@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Shared pieces of the `btf` command: global options, the progress bar, argument parsing.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf bench eval|sample|eval-sample FILE [--filter stochastic|deterministic] [--threads N]
 // [--queries N] [--coherent] [--repeat R] [--json]: how fast this machine evaluates (or
 // importance-samples) a compressed material, so that a user sees what it costs before rendering

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf bsvtf PKG -o OUT.bsvtf: the BSVTF preprocessing of an fmf package (src/btf/bsvtf): the
 // eigen-textures cut into a mip pyramid of padded tiles with their weights (equation 8), each
 // tile compressed against its parent (DCT, quantization, deflate), the Eigen-ABRDFs as packets.

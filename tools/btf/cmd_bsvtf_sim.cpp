@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf bsvtf-sim --scene S.json --path P.json --cache 2048 --bandwidth 10mbit: the headless
 // BSVTF simulator (src/btf/bsvtf/sim.h) — renders a camera path through a fixed tile cache fed
 // over a simulated link and compares every frame with the full-FMF frame; writes a per-frame

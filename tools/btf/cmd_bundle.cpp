@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf bundle PKG... -o site/ [--web DIR]: the viewer and the packages as a static site
 // (docs/protocol.md, "Static bundles") for any web server that serves files and byte ranges.
 

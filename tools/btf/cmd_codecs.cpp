@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf codecs: the compression codecs in this build and their parameters.
 
 #include <algorithm>

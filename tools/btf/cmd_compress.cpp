@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf compress IN -o OUT.btfpkg --codec NAME [-p key=value ...]: encode a BTF into a package and
 // say what it cost (size, ratio) and what it lost (RMSE over every sample). With --codec mlvq,
 // several inputs share one set of code-books in one package.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf compress-many INPUT... -o DIR [codec options]: one package per material, DIR/NAME.btfpkg.
 // Started by mpirun, the materials are shared among the ranks by size (the largest first, each to
 // the rank with the least work so far) and each rank compresses its own in one process; one table

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf convert IN OUT: any reader or package → btfkit HDF5 (.h5), UBO2014 DFMF (.btf) or a UTIA
 // image set; a UBO2014 .btf → an fmf package (.btfpkg) with its own factors.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf decompress PKG -o OUT.h5|DIR: decode a package to a raw BTF (btfkit HDF5 or a UTIA image
 // set), every sample evaluated by its codec.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf eval PKG --uv u,v --light θ,φ --view θ,φ: one BTF value (linear RGB), interpolated; or
 // btf eval PKG --queries FILE: one value per line of FILE ("u,v θi,φi θo,φo"; - = stdin).
 

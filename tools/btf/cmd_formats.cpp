@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf formats: the readers compiled into this build.
 
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf image-diff A B: how different two pictures of one scene look (ΔE00, SSIM, PSNR), e.g. a
 // screenshot of the web viewer against `btf render` of the same scene. Pictures in display
 // formats (PNG, JPEG) are compared as shown; linear ones (EXR, HDR, …) are tone-mapped first,

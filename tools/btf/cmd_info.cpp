@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf info FILE: format, extent, sampling, sizes and value statistics; for a btfkit package its
 // codec, parameters, ratio and sections.
 

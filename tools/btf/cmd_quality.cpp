@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf quality REF TEST [--metrics rmse,lab,de2000,ssim,btf-cielab] [--json] [--cos-weight]
 // [--peak X] [--grid N] [--search]: how far TEST is from REF (two BTFs of equal extent and
 // sampling, or a BTF and a package decoded through its codec).

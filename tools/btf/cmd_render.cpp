@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf render SCENE.json -o OUT.png|OUT.exr: renders a scene (docs/scenes.md) with the CPU path
 // tracer; the command line overrides the scene's "render" block, and --material the scene's BTF
 // materials.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf report REF --codecs CONFIG... -o DIR: compress a reference BTF with several codec
 // configurations and write a self-contained HTML report folder (results table, rate–distortion
 // plots, error heat maps and crops) that opens offline.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf serve [PKG|DIR ...] [--port 8080] [--bind 127.0.0.1] [--web DIR]: the materials over HTTP
 // and WebSockets for the web viewer (docs/protocol.md) until SIGINT or SIGTERM. Without
 // packages it serves the built-in demo material, made once and kept in the cache folder.

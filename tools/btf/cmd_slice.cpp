@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf slice FILE --light θ,φ --view θ,φ -o img.png   |   btf slice FILE --texel x,y -o abrdf.png
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf synth: render a realistic synthetic material to btfkit HDF5.
 
 #include <cstdio>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // btf — the btfkit command. Thin by design: parse arguments, call the library, print.
 
 #include <poll.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // `btf compress` and `btf compress-many` across MPI ranks (docs/distributed.md), started by the
 // real launcher with more ranks than this machine has cores (mpirun --oversubscribe).
 

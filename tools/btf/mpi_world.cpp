@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The btf command's MPI world as a btf::Collective (mpi_world.h). Sums add the ranks' values in
 // rank order: each rank sums one slice of the data from every rank's copy (MPI_Alltoallv), then
 // every rank gathers the summed slices (MPI_Allgatherv); bytes moved per rank are 2 (N − 1) / N of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // MPI for the btf command (docs/distributed.md): started when an MPI launcher (mpirun, mpiexec)
 // started the process, finalized when main() returns. The world's ranks are a btf::Collective

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // End-to-end tests of `btf render`: a scene with a compressed material renders to PNG and EXR;
 // bad scenes give one line, a non-zero exit and no image; --material stands in for every BTF
 // material; every scene in examples/scenes renders. And `btf image-diff`.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // End-to-end tests of `btf report`: what a user types, what they get back.
 
 #include <gmock/gmock.h>

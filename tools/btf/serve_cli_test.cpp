@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // `btf bundle` and `btf serve` as a user runs them: the static layout, refusals, error lines,
 // a running server that answers and exits 0 on SIGTERM, and the cached demo material.
 

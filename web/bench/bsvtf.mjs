@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer's BSVTF mode against its fmf mode on the scene of bench/bsvtf_bench.sh (20 materials
 // of 512² texels, 25 × 25 directions, 16 components), in headless Chromium (SwiftShader) on
 // loopback:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer with every codec (issue 19), in headless Chromium (WebGL2 on the CPU through
 // SwiftShader): one material (btf synth --preset woven_fabric, ubo81 sampling: 81 views × 81
 // lights) compressed by each codec at its defaults and at parameters that give about the same

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Streaming benchmarks of the viewer for docs/benchmarks.md, in headless Chromium (WebGL2 on the
 // CPU through SwiftShader):
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // BSVTF packages in the viewer (docs/bsvtf.md, src/btf/bsvtf/file.h): the header's "bsvtf"
 // fields, the tile index, and the decoding of a tile payload (src/btf/bsvtf/tile_codec.cpp) from
 // the bytes of the raw "tiles" section and the decoded parent (predict_child of pyramid.cpp).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF tile cache of the viewer's BSVTF mode: a port of src/btf/bsvtf/cache.{h,cpp} (tile
 // layout, votes of equation 9, add and swap, the decision rule of §5.2). The decisions must be the
 // C++ ones exactly — same candidates, same arithmetic, same order and tie-breaking — and a unit

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Coded factor storage (model.quantization "coded"; docs/formats.md, "Factorization sections";
 // src/btf/codecs/factor/coded.cpp): one component section holds a's codes, differences at a
 // prediction distance or by channel prediction, and b's, either alike or as 8 × 8 DCT blocks of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The 8 × 8 DCT of btfkit's transform coders (src/btf/util/dct8.cpp): the orthonormal DCT-II
 // basis, the zig-zag order and the inverse transform in double, each sum in the C++ order, and
 // the zig-zag-signed LEB128 varints of the coefficients.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The linear factor model of the factorization codecs (fmf, pca-views, lpca, perceptual; docs/
 // formats.md "Factorization sections", src/btf/codecs/factor/model.h): what the header says, the
 // decoding of its sections, the texture layouts the shader reads, and a CPU evaluator that

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // IEEE 754 binary16 <-> binary32, for f16-quantized factors and half-float textures.
 
 const f32 = new Float32Array(1);

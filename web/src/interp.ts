@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The AngularInterpolator tables of a package's "tables" section and the lookup they serve
 // (docs/interpolation.md). The fragment shader performs this lookup on the GPU; this CPU copy
 // serves the environment pre-integration, the reference evaluator the tests compare pixels with,

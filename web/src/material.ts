@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // One material on the page: its stream, its decoding worker, and the textures and uniforms its
 // objects' shaders read. Worker results queue up here and are applied from the frame loop a few
 // at a time, so a burst of arriving components never stalls a frame.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The renderer's generated shapes (src/btf/render/mesh.cpp) rebuilt vertex for vertex: the same
 // positions, normals, tangents (dP/du), uvs, triangles and winding, and the same object
 // transform (scene_file.cpp: translate · Rz · Ry · Rx · scale), so that a browser frame and a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The mlvq codec of a package (multi-level vector quantization, Havran, Filip, Myszkowski 2010;
 // docs/formats.md "Vector-quantization sections (mlvq)"): the header reader, the decoder of the
 // sections as they stream in, a CPU evaluator that computes what MlvqMaterial::eval and ::albedo

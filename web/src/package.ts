@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Incremental reader of a btfkit package (.btfpkg, docs/formats.md "btfkit package"): bytes go in
 // as they arrive from the network, and every section is handed out, checked and decoded, as soon
 // as its last byte is there. The checks and their messages follow the C++ reader

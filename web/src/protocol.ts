@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Messages between the page and the decoding worker (one worker per material).
 
 import type { BsvtfInfo } from "./bsvtf";

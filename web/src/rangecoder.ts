@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The adaptive binary range decoder and the integer model of btfkit's coded factor storage
 // (src/btf/util/range_coder.h, whose comment defines both): 32-bit range, 11-bit probabilities
 // adapted by 1/32, equiprobable direct bits; integers as a zero flag, a direct sign, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A CPU reference of the viewer's frame at chosen pixels, computed the way the C++ renderer does
 // (src/btf/render/scene.cpp Camera::ray and Scene::intersect, integrator.cpp's next-event
 // estimation for delta lights, quality::tone_map): ray through the pixel centre, closest

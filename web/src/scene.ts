@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The scene the viewer shows, from URL parameters or from a scene in the `btf render` JSON format
 // (docs/scenes.md, a subset), so that a test or a comparison with the C++ renderer can fix every
 // value of a frame. web/README.md lists the parameters.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // GLSL ES 3.00 of the BTF surface. The fragment shader is one shared part — the shading frame of
 // scene.cpp, the lights, shading like the C++ path tracer's next-event estimation
 // (src/btf/render/integrator.cpp: radiance = f · E / π per delta light, plus a uniform

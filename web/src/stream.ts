@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Getting a material's bytes (docs/protocol.md): the WebSocket stream when the server offers one,
 // otherwise (or when the socket fails) the package file over HTTP, read as its body arrives. A
 // transfer cut short resumes with a Range request from the first byte not yet received.

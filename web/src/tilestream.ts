@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer's BSVTF mode (docs/bsvtf.md, Schwartz et al. 2013): the tile cache shared by every
 // BSVTF material of the page, what the frames need of it, and the requests that fill it. Each
 // frame

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer page: a three.js scene of BTF-shaded objects, an orbit camera, movable lights, a HUD,
 // the material list of the server, and window.btfViewer for tests (web/README.md).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The decoding worker: parses one material's package bytes as they arrive, checks and
 // decompresses each section, decodes the factors and packs them into texture layers, so that the
 // page only copies finished layers into textures and its frame loop never waits on decoding.

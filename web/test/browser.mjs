@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Headless Chromium for the viewer's browser tests and benchmarks (Debian's chromium; WebGL2 on
 // the CPU through SwiftShader), and what they read from a page.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer's BSVTF mode in headless Chromium against `btf serve` of a BSVTF package (btf
 // bsvtf), behind a 2 Mbit/s link that lets the tile and U-packet requests through one at a time,
 // each once the page has drawn what the one before brought: the tile cache fills from the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Every codec in the browser against the C++ renderer, in headless Chromium: for each codec a
 // scene of one of its packages, the viewer's settled frame against `btf render --integrator
 // direct` of the same scene file (mean ΔE00 at most 1, the 95th percentile recorded), and the

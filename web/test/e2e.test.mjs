@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // End-to-end test of the viewer in headless Chromium (Debian's chromium, WebGL2 on SwiftShader):
 // a bundle folder served by test/server.mjs, a package held back section by section so the test
 // sees each stage of the progressive refinement, the WebSocket stream and its HTTP fallback,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Test inputs made with the project's CLI (btf synth, btf compress) and the viewer's bundle, in
 // web/test-artifacts/. The btf binary is $BTF_BIN, else build/web/btf of the checkout, built
 // with the documented cmake/ninja commands when it is missing.

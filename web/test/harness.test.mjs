@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Tests of the test harness itself, in node without a browser or a btf binary: the throttling
 // proxy (test/throttle.mjs) on a virtual clock and with its holds, and the first-run build of
 // build/web/btf (test/fixtures.mjs) with stand-ins for cmake and ninja.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Unit tests of the viewer's mlvq module (src/mlvq.ts) in node (node --test test/mlvq.test.mjs):
 // the CPU reference against `btf eval` for both colour models and for packages of shared
 // code-books, prefixes of the stream, damaged sections, the header reader's refusals, and the

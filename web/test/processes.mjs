@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Real servers for the viewer's tests and benchmarks: `btf serve` and Debian's nginx serving a
 // `btf bundle` folder, each started on a free loopback port and stopped with the test.
 

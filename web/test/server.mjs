@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A small static server for the viewer's tests: serves a bundle folder (docs/protocol.md layout:
 // index.html, the viewer's assets, api/materials, materials/<id>.btfpkg) with HTTP Range support,
 // the WebSocket stream/<id> of `btf serve`, and gates that hold a package's body at chosen byte

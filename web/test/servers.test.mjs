@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The viewer against real servers, in headless Chromium: `btf serve` (the WebSocket stream) and a
 // `btf bundle` folder served by Debian's nginx (HTTP with byte ranges), each behind a 2 Mbit/s
 // link (test/throttle.mjs) that holds the package at the end of each component until the page has

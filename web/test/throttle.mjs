@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A TCP proxy that limits what a server sends to each client to a fixed bit rate: a slow link on
 // loopback, for any server (btf serve, nginx, test/server.mjs) and any protocol on top (HTTP,
 // WebSocket). Requests go upstream unpaced. Each connection has its own link: bytes leave the

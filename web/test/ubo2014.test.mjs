@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // UBO2014 files as they are, in the viewer (node --test test/ubo2014.test.mjs; no browser): a DFMF
 // file on the 151-direction "UBO dome 1" sampling (made with the repository's writer: btf synth
 // --sampling dome151, then btf convert to .btf), converted with `btf convert X.btf X.btfpkg`

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Unit tests of the viewer's modules in node (node --test test/): the package reader against the
 // CLI's packages, the fmf decoder and CPU evaluator against `btf eval`, the interpolation tables,
 // the meshes' conventions and the URL parameters.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The BSVTF tile cache (Schwartz et al. 2013, §3 and §5): a fixed number of tile slots shared by
 /// every material of a scene, filled by `add` and `swap` operations chosen from the feedback of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF tile cache: votes (equation 9), priorities and swap costs (equations 8–10) on
 // hand-made cases, add and swap, the decision rule, and the invariants under random operation.
 

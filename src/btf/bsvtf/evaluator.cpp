@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/bsvtf/evaluator.h"
 
 #include <algorithm>

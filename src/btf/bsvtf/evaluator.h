@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Evaluating a BSVTF material: the factorized BTF value(row, texel) = mean[row] + Σ_k a(row, k) ·
 /// b(texel, k) with the angular factors a interpolated exactly like FactorMaterial (≤ 3 views ×

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A cache holding every finest tile reproduces the fmf material: the BSVTF evaluator, reading
 // the eigen-textures from losslessly transmitted tiles through the tile cache, against
 // FactorMaterial::eval for random positions and directions, for rgb and for decorrelated + log

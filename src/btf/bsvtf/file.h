@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The BSVTF file (`btf bsvtf PKG -o OUT.bsvtf`): everything a BSVTF renderer or server needs,
 /// from an fmf package. It is a btfkit package (io/package.h: checksummed sections) with codec

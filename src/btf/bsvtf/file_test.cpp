@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF file: what make_bsvtf writes, read_bsvtf reads back — the angular factors and means
 // of the fmf package, the tile layout, the weights and the payloads — and its errors.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/bsvtf/material.h"
 
 #include "btf/bsvtf/tile_codec.h"

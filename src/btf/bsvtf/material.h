@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// A BSVTF file as a material for every command (`btf eval`, `decompress`, `quality`, `render`):
 /// all its tiles decoded, and the finest level's texels taken as the eigen-textures of the fmf

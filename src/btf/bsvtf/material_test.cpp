@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A BSVTF file as a material: its tiles decoded as the encoder decoded them, and its value the
 // evaluator's with every finest tile resident — the value a BSVTF renderer converges to.
 

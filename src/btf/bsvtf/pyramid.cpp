@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/bsvtf/pyramid.h"
 
 #include <algorithm>

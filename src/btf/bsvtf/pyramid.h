@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Bidirectional Sparse Virtual Texture Functions (Schwartz, Ruiters & Klein 2013), the tile
 /// pyramid: the eigen-textures of a full-matrix factorization cut into tiles of a mip pyramid,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF tile pyramid: level images, padding, tile numbering, the parent prediction, the
 // weights of equation 8, and lookups from tiles against the factor model's own interpolation.
 

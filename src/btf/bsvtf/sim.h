@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The headless BSVTF simulator (`btf bsvtf-sim`): how the method behaves without a GPU.
 ///

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF simulator on a small scene: with an unlimited link, an ample cache and lossless tiles
 // every frame is the full-FMF frame; a smaller cache gives lower SSIM but never holds more than
 // its capacity; over a slow link the frames improve as bytes arrive; and its errors.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Transmission compression of BSVTF tiles (Schwartz et al. 2013, §6): a tile is sent as its
 /// difference to the up-sampled parent that the receiver already holds, 8 × 8 DCT per channel,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The BSVTF tile codec: lossless round trips, the DCT's error bound per 8 × 8 block, closed-loop
 // prediction over a whole pyramid, the step for a relative error, and damaged payloads.
 

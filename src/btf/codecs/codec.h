@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Codec: a named encoder/decoder pair. `encode` turns a streamed BtfSource into a Package;
 /// `open` turns a Package (or a clean prefix of one) into a random-access Material. The codecs

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // What every codec in the registry promises, tested the same way for each (as a renderer tests
 // every BSDF through one adapter): its package opens, re-reads from its bytes to the same
 // material, and every clean prefix of it that opens is a material whose error does not grow as

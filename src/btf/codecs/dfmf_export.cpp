@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/dfmf_export.h"
 
 #include <vector>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Writing any BTF as a Bonn UBO2014 DFMF file (`!DFMF08FC`) through the fmf codec's streaming
 /// factorization, so that sources of any size can be exported (the exact in-memory SVD of

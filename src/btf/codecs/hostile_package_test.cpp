@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Crafted package headers and sections against every codec's open(): each must be refused with a
 // one-line btf::Error naming what is wrong, before anything is allocated for it, and never turn
 // into NaN values, a silently narrowed integer or an ignored field. The cases are those a

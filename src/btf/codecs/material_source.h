@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// MaterialSource: a decoded Material seen as a BtfSource, so that everything that reads raw BTFs
 /// (the HDF5 and UTIA writers, the slicer, the metrics) reads a compressed material the same way,

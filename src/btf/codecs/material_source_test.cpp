@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/material_source.h"
 
 #include <gmock/gmock.h>

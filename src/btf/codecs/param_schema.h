@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// ParamSchema<Options>: a codec's parameters, each declared once — its name, type, range (or
 /// choices), help text and the Options member it is stored in. Its default is that member's value

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/param_schema.h"
 
 #include <gmock/gmock.h>

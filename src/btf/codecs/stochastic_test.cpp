@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Stochastic filtering (core/material.h, ShadingPoint) for every codec and for UBO2014 files:
 // the mean of many stochastic evaluations at a fixed query is the filtered value, a test of that
 // which fails when the selection probabilities are perturbed, the batch call against the shading

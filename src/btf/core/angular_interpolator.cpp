@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/angular_interpolator.h"
 
 #include <libqhull_r/libqhull_r.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Barycentric interpolation over the directions of a DirectionSet: the one angular interpolator
 /// that the evaluators, the renderer, the metrics and the WebGL viewer share.

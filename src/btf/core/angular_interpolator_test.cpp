@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/angular_interpolator.h"
 
 #include <gmock/gmock.h>

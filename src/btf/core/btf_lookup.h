@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The 6-D BTF lookup every evaluator shares: bilinear in space (wrapping) × barycentric over
 /// ≤ 3 views × barycentric over ≤ 3 lights.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/btf_lookup.h"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/color.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The one colour module of btfkit: transfer functions and colour spaces used by readers, codecs,
 /// metrics and the viewer. All RGB is linear sRGB/Rec.709 primaries with a D65 white unless a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Directions on the local hemisphere and sets of them.
 ///

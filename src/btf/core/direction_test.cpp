@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/direction.h"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/hemisphere.h"
 
 namespace btf {

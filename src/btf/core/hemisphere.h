@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Area-preserving mapping between the unit square and the upper hemisphere, and small
 /// spherical-geometry helpers.

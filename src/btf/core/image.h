@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Float images (interleaved channels, row-major, row 0 first) and their file I/O through
 /// OpenImageIO. 8-bit files are sRGB-encoded; EXR/HDR hold linear values.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The interface between btfkit and its image module, libbtfkit_images.so: the only code that
 /// links OpenImageIO, loaded with dlopen the first time an image file is read or written.

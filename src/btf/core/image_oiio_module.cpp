@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // libbtfkit_images.so: btfkit's image file I/O through OpenImageIO (core/image_module.h). Built
 // as a module of its own and loaded by core/image.cpp on first use; it links nothing of btfkit.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/image.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/light_sampler.h"
 
 #include <algorithm>

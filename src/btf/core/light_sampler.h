@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The generic light-direction sampler and the quadrature albedo: the defaults of
 /// Material::sample(), pdf() and albedo() for materials that cannot sample from their own

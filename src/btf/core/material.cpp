@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/core/material.h"
 
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Material: random-access evaluation of a BTF at any surface position and any pair of
 /// directions, light-direction sampling and directional albedo. Implemented by every codec's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Small vector math used across btfkit (double precision for geometry).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// pick() of btf/core/material.h for kPickLanes queries at once, one per lane of a vector of
 /// doubles: the same operations on the same doubles, so the same draws bit for bit, with

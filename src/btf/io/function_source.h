@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// A BtfSource whose values come from a function of (view, light, texel): analytic BTFs for tests
 /// and examples (a Lambertian surface under known lights, a matrix seen as a BTF, …).

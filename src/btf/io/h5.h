@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// btfkit's own HDF5 form of a raw BTF: the interchange format that Python users read with h5py
 /// and that the synthesizer and converters write. The layout is documented byte-exactly enough in

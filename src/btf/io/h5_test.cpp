@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/h5.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/image_set.h"
 
 #include <zip.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Shared machinery of the image-set formats (Bonn UBO2003, UTIA image sets): a BTF stored as one
 /// image file per (view, light), the light and view angles written in each file's name. The

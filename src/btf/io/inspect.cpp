@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/inspect.h"
 
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// What `btf info` shows about a source: sizes and value statistics.
 

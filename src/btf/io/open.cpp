@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/open.h"
 
 #include <cctype>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Opening any BTF by path: the registry of readers. Adding a reader means adding its files under
 /// io/ and one line to the registry in open.cpp.

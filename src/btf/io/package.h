@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The `.btfpkg` package: btfkit's compressed material file (byte layout in docs/formats.md,
 /// "btfkit package").

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/package.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// A Material over an uncompressed BTF: every (view, light) image of a source held in memory as
 /// half floats and interpolated exactly like every codec's evaluator (btf::lookup6d: bilinear in

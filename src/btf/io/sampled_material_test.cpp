@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/sampled_material.h"
 
 #include <gtest/gtest.h>

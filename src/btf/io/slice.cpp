@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/slice.h"
 
 #include "btf/core/angular_interpolator.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Pictures of a BTF: the image at arbitrary light and view directions (through the shared
 /// AngularInterpolator) and the apparent BRDF of one texel.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// BtfSource: a read-only raw BTF, read image by image. Every reader (UBO2003, UBO2014 at its
 /// sample directions, UTIA image sets, btfkit HDF5, the synthesizer) implements it, and every

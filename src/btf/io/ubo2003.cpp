@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/io/ubo2003.h"
 
 #include <algorithm>

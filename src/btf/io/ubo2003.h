@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Reader for Bonn UBO2003 materials (the "BTFDBB" database of 2003), layout "MANYFILES":
 ///

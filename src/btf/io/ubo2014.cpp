@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Decoding a UBO2014 factorization at its sample directions, and the BtfSource over it.
 
 #include "btf/io/ubo2014.h"

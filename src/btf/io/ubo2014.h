@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Bonn UBO2014 `.btf` files: BTFs stored as truncated SVDs by the measurement lab
 /// (FORMATS.md, "Bonn UBO2014 .btf"). btfkit reads the DFMF body (`!DFMF08FC`, one factorization

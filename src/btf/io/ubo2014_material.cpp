@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // A UBO2014 factorization as a Material that interpolates decoded RGB samples: the one
 // AngularInterpolator for views and lights and lookup6d's bilinear × barycentric weighting, over
 // samples decoded to linear RGB one by one (cosine flag divided out). Only files with the cosine

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Reading Bonn UBO2014 .btf files (FORMATS.md, "Bonn UBO2014 .btf", items 1–7).
 //
 // The file is parsed in two passes. The first walks every header and size field, seeking over the

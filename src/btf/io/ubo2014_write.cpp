@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Writing UBO2014 `!DFMF08FC` files (FORMATS.md items 1–5) and the exact in-memory factorization
 // of small sources that feeds the writer.
 //

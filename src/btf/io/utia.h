@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// UTIA image sets: one folder, one image per (light, view), named
 ///

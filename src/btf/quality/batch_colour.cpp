@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Built with -O3 -ffast-math (see CMakeLists.txt): keep everything here free of NaN and infinity
 // tests, which fast-math may remove, and of branches, which stop vectorization.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Batched colour kernels for the per-sample work of BTF-CIELab, written as branch-free loops
 /// over float arrays so that the compiler vectorizes them, math functions included (this file's

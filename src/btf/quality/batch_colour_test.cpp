@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/batch_colour.h"
 
 #include <gtest/gtest.h>

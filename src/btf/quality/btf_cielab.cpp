@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // BTF-CIELab (Guthe et al. 2009, §3–4). The pipeline for one spatial resolution r_s:
 //
 //   pass 1 (per view, lights in parallel): read the reference and the test image, convert both to

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// BTF-CIELab (Guthe, Müller, Schneider, Klein 2009): the perceptual difference of two BTFs of
 /// equal extent and sampling under a range of viewing conditions. Both BTFs are converted to cone

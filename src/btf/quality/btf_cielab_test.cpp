@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/btf_cielab.h"
 
 #include <gtest/gtest.h>

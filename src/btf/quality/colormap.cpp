@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/colormap.h"
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Error heat maps: a perceptual sequential colour map, error images coloured with it, and the
 /// colour bar (an SVG) that states the scale.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// How well one view of a BTF is approximated by a low-rank matrix: the realism check of the
 /// synthetic materials and a quick measure of how hard a material is for PCA-based codecs.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// What `btf quality` measures, as one library call: the metrics of compare() and, on request,
 /// BTF-CIELab, and their JSON form (what `btf quality --json` prints and the Python module's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/metrics.h"
 
 #include <tbb/enumerable_thread_specific.h>

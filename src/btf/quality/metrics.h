@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Per-sample and per-image error measures between two BTFs of equal extent and sampling: RMSE and
 /// PSNR in linear RGB, MAE per CIELab channel, CIEDE2000 statistics, and SSIM/MSSIM (Wang et al.

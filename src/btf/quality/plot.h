@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Line plots written as standalone SVG documents (axes, ticks, grid, labels, legend), for the
 /// rate–distortion curves of `btf report`. No plotting library and no script: the SVG is plain

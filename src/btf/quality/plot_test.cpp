@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/plot.h"
 
 #include <gtest/gtest.h>

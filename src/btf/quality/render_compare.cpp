@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/quality/render_compare.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// How different two renders of one scene look: the compare mode of `btf render`, which renders a
 /// scene with two versions of a material (raw and compressed, or two codec settings) so that a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // write_report(): encode with every configuration, measure, draw, and move the finished folder
 // into place.
 

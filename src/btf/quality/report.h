@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The compression report (`btf report`): a reference BTF is compressed with several codec
 /// configurations, every result is decoded and compared with the reference, and a self-contained

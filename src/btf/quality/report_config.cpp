@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The report's codec configurations ("fmf:C=8,16,32") and its default selection of images.
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The report's configuration parser, image selection, page and numbers, without encoding anything
 // (report_test.cpp writes whole reports).
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The report's page (index.html), its numbers (report.json) and its rate–distortion plots, made
 // from a Report whose image files exist. Nothing here measures anything.
 

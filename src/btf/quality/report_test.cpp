@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // Whole reports of a tiny synthetic material: files, table, pictures, atomic output.
 
 #include "btf/quality/report.h"

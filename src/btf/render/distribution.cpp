@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/render/distribution.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Piecewise-constant probability distributions over [0,1) and [0,1)², sampled by inverting their
 /// cumulative distribution functions (the building block of environment-map importance sampling).

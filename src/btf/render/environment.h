@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// An infinite area light from a latitude-longitude ("equirectangular") radiance image, with
 /// importance sampling of its directions, and a procedural sky to light scenes without a file.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Radiance along a camera ray: unidirectional path tracing with next-event estimation and
 /// multiple importance sampling (power heuristic) between light sampling and the surface's own

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/render/lights.h"
 
 #include <algorithm>

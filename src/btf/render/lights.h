@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The light sources of a scene, in world space (right-handed, +y up): point, directional,
 /// spherical area and environment. A renderer asks a light for a direction towards it from a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Triangle meshes for the path tracer: generated test shapes (plane, sphere, cylinder, torus),
 /// meshes read from Wavefront OBJ files, and affine transforms of them. The buffers are the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/render/mesh.h"
 
 #include <gtest/gtest.h>

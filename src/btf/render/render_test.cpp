@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The renderer against what can be known: analytic radiance of a Lambertian BTF under delta
 // lights, the white furnace, agreement of the MIS, light-only and material-only estimators, the
 // orientation of the BTF's local frame on every shape, surface sampling densities, determinism,

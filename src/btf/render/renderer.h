@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The render loop: passes of one sample per pixel over tiles rendered in parallel on all cores,
 /// until the requested samples per pixel or the time limit is reached; the image, optional AOVs

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The renderer's random numbers: PCG32 (O'Neill 2014), one stream per (seed, pixel, sample) so
 /// that an image is the same for any number of threads and any tile order.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/render/scene.h"
 
 #include <embree3/rtcore.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// A scene for the CPU renderer: a pinhole camera, triangle-mesh objects with surfaces and a uv
 /// mapping, and lights, with Embree 3 answering the ray queries. Scenes are usually read from

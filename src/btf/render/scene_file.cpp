@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/render/scene_file.h"
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Scenes as JSON files (the format is documented in docs/scenes.md). Every key is checked: an
 /// unknown or misspelt key, a value of the wrong type or range, or a file that cannot be read is

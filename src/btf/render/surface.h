@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// What a renderer's surface hit reflects: a BTF material (any codec's Material, with its own
 /// importance sampling) or one of two simple analytic fallbacks for objects that have no measured

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/stream/bundle.h"
 
 #include <cerrno>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Static bundles (docs/protocol.md, "Static bundles"): the viewer and the packages laid out so
 /// that any web server that serves files and byte ranges serves them, with the same URLs as

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/stream/catalog.h"
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The material list of the streaming protocol (docs/protocol.md, `GET api/materials`): which
 /// packages `btf serve` and `btf bundle` publish, under which ids, and where each package's

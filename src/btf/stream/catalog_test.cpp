@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The material list (ids, section tables read from package headers, errors) and static bundles.
 
 #include "btf/stream/catalog.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The request-level rules of the streaming server (request.h): targets, ranges, and the WebSocket
 // opening handshake. Field lists (Connection, Upgrade) are split by Beast's RFC 7230 token list.
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The request-level rules of `btf serve` (docs/protocol.md), apart from the server so that they
 /// can be tested and fuzzed alone: what a request target names, which bytes a Range field asks

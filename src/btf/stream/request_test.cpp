@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The server's request-level rules alone (request.h): target decoding, the Range policy, and the
 // WebSocket handshake check. server_test.cpp checks the same rules through real connections.
 

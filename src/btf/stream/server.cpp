@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The Beast/Asio implementation of btf::stream::Server (docs/protocol.md). All Beast code of the
 // library lives in this file so that only it pays Beast's compile time.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The HTTP + WebSocket server of `btf serve` (docs/protocol.md): the viewer's files from a web
 /// root, the material list (`api/materials`), the packages with byte ranges

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The streaming server against a real Beast client on loopback: the protocol's endpoints, byte
 // ranges, the WebSocket stream's message boundaries, refusals of unsafe or malformed requests,
 // limits, concurrency and shutdown.

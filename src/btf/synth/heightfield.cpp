@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/synth/heightfield.h"
 
 #include <algorithm>

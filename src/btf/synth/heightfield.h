@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Periodic scalar fields, tileable procedural noise and the ray queries on a height field that
 /// give the synthetic BTFs their hard effects: cast shadows toward a light, the surface point a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The microfacet pieces the synthetic materials shade with, in single precision for speed.
 /// Vectors are in a local shading frame: z = the (meso-scale) surface normal, x = the tangent

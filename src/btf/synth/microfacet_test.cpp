@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/synth/microfacet.h"
 
 #include <gtest/gtest.h>

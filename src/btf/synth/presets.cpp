@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The presets of the synthesizer: each is a function of a continuous position (u, v) on the
 // unit square that returns the height and material parameters there. Heights are in units of
 // the patch width, so a preset looks the same at every size (a 64² render is a coarser sampling

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Synthetic BTFs with the effects that make measured BTFs hard: cast shadows, masking,
 /// parallax, inter-reflection, and highlights that wander with the mesostructure.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/synth/synth.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Tests of direction samplers over the upper hemisphere (GoogleTest helpers; not part of the
 // library): a chi-square goodness-of-fit test of a sampler against its pdf, and the integral of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Test support (GoogleTest only; not part of the library): runs the `btf` command the way a user
 // does and returns its exit code and everything it printed. A test including this header makes

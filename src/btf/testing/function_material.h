@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Analytic materials for tests (GoogleTest only; not part of the library): a Material whose value
 // is a function of (uv, ωi, ωo), and the Lambertian material value = ρ · cos θi.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Small samplings and deterministic noise for the codec tests (GoogleTest only; not part of the
 // library).

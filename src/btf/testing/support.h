@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Test support (GoogleTest only; not part of the library): a fresh folder per test, the
 // message of an expected btf::Error, and whole files read and written as strings.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 // Reads an XML document (an SVG, or a polyglot HTML page) into a flat element list with expat, so
 // tests can check what btfkit writes by its structure (GoogleTest only; not part of the library;

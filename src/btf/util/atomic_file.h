@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Output written under a temporary name in the destination's folder and renamed into place on
 /// commit(), so an interrupted or failed run never leaves a truncated file that looks valid and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/atomic_file.h"
 
 #include <gtest/gtest.h>

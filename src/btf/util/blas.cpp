@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/blas.h"
 
 #include <cblas.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Single-precision matrix products through OpenBLAS, run on the calling thread.
 ///

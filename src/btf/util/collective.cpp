@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/collective.h"
 
 #include <algorithm>

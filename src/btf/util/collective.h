@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The processes of one distributed run (MPI ranks), as btfkit's algorithms use them: element-wise
 /// sums with the same bits on every rank, agreement on failures, strings gathered and broadcast.

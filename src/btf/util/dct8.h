@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The 8 × 8 DCT and the integer coding that btfkit's transform coders share (the BSVTF tile
 /// codec, the coded factor storage): the orthonormal DCT-II in double, the zig-zag order, and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Errors in btfkit: the library never prints and never exits; it throws btf::Error whose
 /// message names the file, the offset or image, and what was wrong, e.g.

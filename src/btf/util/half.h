@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// IEEE half floats stored as their 16 bits (packages, tiles, in-memory samples): conversion with
 /// Eigen's half type, rounding to nearest even.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/huge_pages.h"
 
 #include <algorithm>

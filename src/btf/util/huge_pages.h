@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Memory for tables that evaluation reads at random: the decoded code-books of mlvq, the factor
 /// rows of fmf and UBO2014 materials. A random read into a table of tens of MiB misses the TLB

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Runs work whose failure could take the process down in a child process of its own, so that a
 /// crash there becomes a btf::Error here. btfkit uses it where a third-party library reads

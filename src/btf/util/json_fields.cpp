@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/json_fields.h"
 
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Strict reading of the numbers in file headers (package headers, BSVTF headers): an integer
 /// field must be a JSON integer (not 1.5, not 1e3) inside its range, a real field a finite number

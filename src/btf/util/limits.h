@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The sizes btfkit accepts from input before it allocates for them: one place for every limit
 /// a reader or decoder applies to what a file declares (docs/formats.md, "Limits"). A crafted

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/limits.h"
 
 #include <gmock/gmock.h>

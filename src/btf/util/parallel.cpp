@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/parallel.h"
 
 #include <tbb/global_control.h>

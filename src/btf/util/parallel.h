@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Parallel loops over index ranges (oneTBB). For deterministic numerics, reduce per fixed chunk
 /// (parallel_chunks) and combine the chunk results in chunk order: the result is then the same for

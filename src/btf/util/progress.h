@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Progress reporting and cancellation for long operations. The library reports through a
 /// callback; the CLI draws a bar on a terminal and plain lines otherwise.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/progress.h"
 
 #include <gtest/gtest.h>

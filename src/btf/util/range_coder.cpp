@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/range_coder.h"
 
 #include <algorithm>

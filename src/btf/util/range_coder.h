@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// An adaptive binary range coder and the model of signed integers that btfkit's coded factor
 /// storage writes with it (docs/formats.md, "Coded components"). Everything is integer arithmetic

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The two products of a randomized factorization's pass, of a wide matrix A (rows as read, row
 /// major, n columns) with a thin factor (w ≤ a few hundred columns):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/util/thin_products.h"
 
 #include <gtest/gtest.h>

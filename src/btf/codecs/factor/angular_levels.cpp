@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/factor/angular_levels.h"
 
 #include <Eigen/Cholesky>

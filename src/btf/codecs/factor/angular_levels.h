@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Angular levels of eigen-ABRDFs (high-frequency omission over directions, Guthe et al. 2009
 /// §5.3): a component's angular factor stored on a subset of the view and light directions and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Coded factor storage (`quantize=coded`): each component section holds its angular factor a
 /// and its texel factor b quantized with steps chosen from one value-domain step Δ, and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/factor/coded.h"
 
 #include <fmt/format.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // FactorMaterial: the fast evaluator of the linear factor model.
 //
 // A query touches ≤ 3 views × ≤ 3 lights (angular weights w_p) and 4 texels (bilinear weights

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // FactorMaterial's fast paths against its scalar references and against the core's stochastic
 // filter, on the materials of every factor codec and of UBO2014 files: half and float rows, one
 // block (fmf, UBO2014) and several (view groups, texel clusters, spatial and angular levels).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The linear factor model shared by the factorization codecs (fmf, pca-views, lpca, perceptual):
 /// its package sections, its quantization and its fast evaluator.

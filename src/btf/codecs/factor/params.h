@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The parameters the factorization codecs share (fmf, pca-views, lpca, perceptual), declared
 /// once here for all of them. A codec's Options holds them in members of these names:

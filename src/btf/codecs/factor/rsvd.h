@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Truncated SVDs of BTF matrices too large for memory, run as streaming passes over the rows of
 /// one or more matrices. Two methods:

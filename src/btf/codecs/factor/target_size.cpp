@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // FactorCodec::encode_to_size: a factorization package of at most a given size at the lowest
 // error found (btf compress --target-size), the error being the eye's: the mean CIEDE2000 over a
 // fixed sample of the source's values. An error in the factors' own domain (the Frobenius norm

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // fmf — full-matrix factorization (Koudelka et al. 2003; the Bonn FMF of `001`).
 //
 // The BTF as one matrix: rows are the angular samples (view · nL + light, times the three colour

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// fmf: full-matrix factorization of the BTF matrix (rows: view × light [× colour], columns:
 /// texels) by a streaming randomized SVD; see fmf.cpp for the user documentation.

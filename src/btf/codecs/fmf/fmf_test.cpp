@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/fmf/fmf.h"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// # lpca: local PCA
 ///
 /// The texels are clustered by their ABRDFs (apparent BRDFs: every view × light × colour value

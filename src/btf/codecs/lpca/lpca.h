@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// lpca: local PCA, texels clustered by their ABRDF with one PCA per cluster (Müller, Meseth and
 /// Klein 2003); see lpca.cpp for the user documentation.

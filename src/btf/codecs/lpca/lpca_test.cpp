@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/lpca/lpca.h"
 
 #include <gmock/gmock.h>

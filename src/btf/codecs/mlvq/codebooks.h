@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The code-books of the multi-level vector quantization codec `mlvq` (Havran, Filip, Myszkowski
 /// 2010, §4.3, Fig. 3) as the decoder holds them, the reconstruction of equation 4, and their

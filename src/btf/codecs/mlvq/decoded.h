@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The code-books of an mlvq package as the evaluator and the sampler read them: built once per
 /// Codebooks and shared by every material that uses them.

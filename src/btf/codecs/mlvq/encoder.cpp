@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/mlvq/encoder.h"
 
 #include <cmath>

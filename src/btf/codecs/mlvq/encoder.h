@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The multi-level vector quantization of §4.3–§4.4 (Havran, Filip, Myszkowski 2010): texels'
 /// apparent BRDFs on the grid are matched against the code-books top down and, where no

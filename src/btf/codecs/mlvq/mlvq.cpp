@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // mlvq — multi-level vector quantization of BTFs (Havran, Filip, Myszkowski 2010, "Bidirectional
 // Texture Function Compression Based on Multi-Level Vector Quantization").
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// mlvq: multi-level vector quantization (Havran, Filip, Myszkowski 2010); see mlvq.cpp for the
 /// user documentation, codebooks.h for the model and encoder.h for the quantization.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // The stochastic filter of mlvq materials (MlvqMaterial::select() and the *_selected() hooks,
 // reached through ShadingPoint): one texel × one view node of mlvq's own grid, drawn with
 // probability equal to its weight in eval().

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/mlvq/mlvq.h"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The angular parametrization of the multi-level vector quantization codec `mlvq` (Havran, Filip,
 /// Myszkowski 2010, §4.1, Fig. 4–6): the regular 4-D grid F_x(α, β, θv, φv) on which every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/mlvq/parametrization.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The small mlvq grid of the codec's tests: 7 α × 7 β × 4 θv (0°, 30°, 60°, 90°) × 6 φv (60°
 /// apart). It keeps the tests fast; the structure is the paper's.

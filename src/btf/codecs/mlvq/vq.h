@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The vector-quantization core of the mlvq codec (Havran, Filip, Myszkowski 2010, §4.2–§4.4 and
 /// §5.1): a code-book of fixed-length float vectors that grows by the paper's threshold rule

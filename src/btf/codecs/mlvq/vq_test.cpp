@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/mlvq/vq.h"
 
 #include <gtest/gtest.h>

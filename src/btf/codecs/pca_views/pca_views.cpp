@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 /// # pca-views: PCA over groups of neighbouring views
 ///
 /// The views of the BTF are partitioned into groups of k neighbouring view directions; each

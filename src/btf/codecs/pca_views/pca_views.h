@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// pca-views: PCA with mean centring over groups of k neighbouring views (k = 1: PCA-RF, k = all
 /// views: PCA-BTF); see pca_views.cpp for the user documentation.

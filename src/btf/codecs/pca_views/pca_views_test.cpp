@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/pca_views/pca_views.h"
 
 #include <gmock/gmock.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// The linearized contrast sensitivity filters of the perceptual codec (Guthe, Müller, Schneider,
 /// Klein 2009, "BTF-CIELab", §5 and Table 2): per CIELab plane the product of a spatial and an

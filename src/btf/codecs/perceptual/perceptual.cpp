@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 // perceptual — perceptually guided factorization (Guthe, Müller, Schneider, Klein 2009,
 // "BTF-CIELab", §5).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// perceptual: factorization of the BTF in CIELab weighted by a contrast sensitivity function
 /// (Guthe, Müller, Schneider, Klein 2009, "BTF-CIELab", §5); see perceptual.cpp for the user

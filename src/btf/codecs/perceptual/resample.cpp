@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #include "btf/codecs/perceptual/resample.h"
 
 #include <vector>

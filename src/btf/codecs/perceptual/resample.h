@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: MIT
 #pragma once
 /// Spatial levels of eigen-textures (high-frequency omission, Guthe et al. 2009 §5.3): the
 /// bilinear, wrapping up-sampling B by 2^level per axis that the factor model's evaluator applies
