@@ -191,6 +191,30 @@ TEST(HostilePackage, UndeclaredSectionsAndTrailingBytesAreRefused) {
     EXPECT_THAT(e, AllOf(HasSubstr("crafted.btfpkg"), HasSubstr("section 'tables'")));
 }
 
+// The viewer's interpolation tables must be those of the header's directions; their floats to
+// within their last bits, which differ between builds and machines (a package written by a
+// -march=native build opens in the Debian package's x86-64 build, and the other way round).
+TEST(HostilePackage, TablesMatchTheDirectionsToTheLastBitsOfTheirFloats) {
+    // Words 0-5 are the view set's counts; the first vertex's x follows.
+    const auto word = [](Package& p, size_t index) -> uint8_t* {
+        return section(p, "tables").data.data() + 4 * index;
+    };
+    const auto nudge = [&](Package& p, float by) {
+        float x;
+        std::memcpy(&x, word(p, 6), 4);
+        x = x == 0 ? by : x * (1 + by);
+        std::memcpy(word(p, 6), &x, 4);
+    };
+    Package close = encoded("fmf");
+    nudge(close, 3e-7f);
+    EXPECT_NO_THROW(open_material(decode_package(encode_package(close, {0}), "close.btfpkg")));
+    EXPECT_THAT(open_error("fmf", [&](Package& p) { nudge(p, 1e-3f); }),
+                HasSubstr("section 'tables'"));
+    // The grid resolution, an integer, must be exact.
+    EXPECT_THAT(open_error("fmf", [&](Package& p) { ++*reinterpret_cast<int32_t*>(word(p, 0)); }),
+                HasSubstr("section 'tables'"));
+}
+
 TEST(HostilePackage, DirectionsMustLieOnTheHemisphere) {
     const std::string theta =
         open_error("fmf", [](Package& p) { p.header["views"]["theta"][1] = -2147483648.0; });

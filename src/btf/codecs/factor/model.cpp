@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <span>
 #include <tuple>
 
 #include "btf/codecs/factor/coded.h"
@@ -314,6 +315,48 @@ void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
     append(out, t.inverse.data(), t.inverse.size());
     append(out, t.cell_offsets.data(), t.cell_offsets.size());
     append(out, t.cell_triangles.data(), t.cell_triangles.size());
+}
+
+/// Whether `stored` holds the tables append_tables() writes for `sets`, one after the other: the
+/// counts, triangles and cell lists exactly, the vertices and inverse matrices within 1e-5 of the
+/// ones computed here (relative to 1 or the value). Their last bits differ between machines and
+/// builds: glibc's libm picks its code by CPU, and a build for a CPU with FMA contracts a·b + c.
+bool tables_match(std::span<const uint8_t> stored,
+                  std::initializer_list<const DirectionSet*> sets) {
+    size_t at = 0;
+    // The next `count` words of `stored` against `expected`: equal bits, or floats close enough.
+    const auto take = [&](const void* expected, size_t count, bool floats) {
+        if (stored.size() - at < count * 4) return false;
+        for (size_t i = 0; i < count; ++i, at += 4) {
+            if (!floats) {
+                if (std::memcmp(stored.data() + at, static_cast<const char*>(expected) + i * 4, 4))
+                    return false;
+                continue;
+            }
+            float a, b;
+            std::memcpy(&a, stored.data() + at, 4);
+            std::memcpy(&b, static_cast<const char*>(expected) + i * 4, 4);
+            if (!(std::abs(double(a) - double(b)) <= 1e-5 * std::max(1.0, std::abs(double(b)))))
+                return false;
+        }
+        return true;
+    };
+    for (const DirectionSet* set : sets) {
+        const AngularInterpolator::Tables t = AngularInterpolator(*set).tables();
+        const int32_t head[6] = {t.grid_resolution,
+                                 t.num_directions,
+                                 t.num_vertices,
+                                 t.lifted_horizon ? 1 : 0,
+                                 static_cast<int32_t>(t.triangles.size() / 3),
+                                 static_cast<int32_t>(t.cell_triangles.size())};
+        if (!take(head, 6, false) || !take(t.vertices.data(), t.vertices.size(), true) ||
+            !take(t.triangles.data(), t.triangles.size(), false) ||
+            !take(t.inverse.data(), t.inverse.size(), true) ||
+            !take(t.cell_offsets.data(), t.cell_offsets.size(), false) ||
+            !take(t.cell_triangles.data(), t.cell_triangles.size(), false))
+            return false;
+    }
+    return at == stored.size();
 }
 
 // The viewer's copy of the angular levels' up-sampling (section "angular"): per level, U of the
@@ -742,16 +785,12 @@ Model from_package(const Package& package) {
                 fail("block {}: a mean, factor or energy is not a finite number", i);
         }
         // The tables are the viewer's copy of the interpolation tables the evaluator builds from
-        // the directions: they must be exactly those, or the browser would not show this material.
+        // the directions: they must be those (to the last bits of their floats, which differ
+        // between machines), or the browser would not show this material as btfkit does.
         if (const PackageSection* tables = package.find("tables")) {
-            std::vector<uint8_t> expected;
-            append_tables(expected, model.sampling.views);
-            append_tables(expected, model.sampling.lights);
-            if (tables->data != expected)
-                fail(
-                    "section 'tables' ({} bytes) is not the tables of the header's directions ({} "
-                    "bytes)",
-                    tables->data.size(), expected.size());
+            if (!tables_match(tables->data, {&model.sampling.views, &model.sampling.lights}))
+                fail("section 'tables' ({} bytes) is not the tables of the header's directions",
+                     tables->data.size());
         }
         // The up-sampling weights come from AngularInterpolator::weights(), whose last bits may
         // change with the way it finds a query's triangle (a direction on an edge lies in two),
