@@ -8,7 +8,7 @@ JOBS      ?= $(shell nproc)
 BTF       := $(BUILD_DIR)/btf
 
 .PHONY: all bootstrap configure build test demo format format-check bench clean \
-        test-sanitize fuzz fuzz-corpus python
+        test-sanitize fuzz fuzz-corpus python package
 
 all: build
 
@@ -29,9 +29,22 @@ build: bootstrap $(BUILD_DIR)/build.ninja
 python: bootstrap $(BUILD_DIR)/build.ninja
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target python
 
-## The whole test suite: formatting, then every GoogleTest case, the Python module's pytest suite
-## and the viewer's tests through CTest.
-test: build format-check
+## The Debian package, build/package/btfkit_<version>_amd64.deb (cmake/package.cmake): its own build
+## in build/package, of x86-64 baseline code (the release build is tuned for this machine's CPU),
+## installed under /usr; CPack, with Depends from dpkg-shlibdeps. Install it with
+## `sudo apt-get install ./build/package/btfkit_*_amd64.deb`.
+PACKAGE_DIR := build/package
+$(PACKAGE_DIR)/build.ninja: | bootstrap
+	cmake --preset package
+
+package: bootstrap $(PACKAGE_DIR)/build.ninja
+	cmake --build $(PACKAGE_DIR) -j $(JOBS)
+	cd $(PACKAGE_DIR) && cpack --config CPackConfig.cmake
+	@ls $(PACKAGE_DIR)/btfkit_*_amd64.deb
+
+## The whole test suite: formatting, then every GoogleTest case, the Python module's pytest suite,
+## the viewer's tests and the Debian package's (Install.deb) through CTest.
+test: build format-check package
 	ctest --test-dir $(BUILD_DIR) -j $(JOBS) --output-on-failure --timeout 900
 
 ## The C++ suite built with AddressSanitizer + UndefinedBehaviorSanitizer (clang, the `sanitize`
@@ -44,7 +57,7 @@ $(SANITIZE_DIR)/build.ninja: | bootstrap
 test-sanitize: bootstrap $(SANITIZE_DIR)/build.ninja
 	cmake --build $(SANITIZE_DIR) -j $(JOBS)
 	LSAN_OPTIONS=suppressions=$(CURDIR)/fuzz/lsan.supp:print_suppressions=0 \
-	  ctest --test-dir $(SANITIZE_DIR) -j $(JOBS) --output-on-failure --timeout 1800 -E '^WebViewer[.]'
+	  ctest --test-dir $(SANITIZE_DIR) -j $(JOBS) --output-on-failure --timeout 1800 -E '^(WebViewer[.]|Install[.]deb$$)'
 
 ## Every libFuzzer target in fuzz/ for FUZZ_SECONDS each (ASan + UBSan), from its corpus; new
 ## inputs go to build/sanitize/fuzz/<target>/, not into the repository (FUZZ_MERGE=1 merges them

@@ -158,6 +158,14 @@ if(BTFKIT_SHARED)
   set_target_properties(btf PROPERTIES INSTALL_RPATH "$ORIGIN/${_btfkit_bin_to_lib}")
 endif()
 
+# ---- the web viewer (`btf serve` and `btf bundle` find it beside the command) and btf(1) ---------
+# The source maps stay out: they hold the bundled npm packages' sources, for debugging a build.
+if(BTF_WEB_BUILT)
+  install(DIRECTORY ${CMAKE_BINARY_DIR}/web/ DESTINATION ${CMAKE_INSTALL_DATADIR}/btfkit/web
+          COMPONENT runtime PATTERN "*.map" EXCLUDE)
+endif()
+install(FILES ${BTF_MAN_PAGE} DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT runtime)
+
 # ---- public headers: the include closure of btf/btf.h --------------------------------------------
 # The compiler lists what btf/btf.h includes (-MM) into a depfile, which also tells Ninja to list
 # again when any of those headers changes; the install script installs the ones under src/.
@@ -261,5 +269,13 @@ if(BTF_BUILD_TESTS)
          "PYTHON_DIR=${BTFKIT_INSTALL_PYTHONDIR}")
     set_tests_properties(Install.python PROPERTIES ENVIRONMENT "${_btfkit_install_test_env}"
                                                    TIMEOUT 300)
+    # The Debian package `make package` builds (cmake/package.cmake) in build/package, checked
+    # from this build's tests (`make test` makes it first).
+    add_test(NAME Install.deb
+             COMMAND bash ${PROJECT_SOURCE_DIR}/tests/install_consumer.sh deb ${CMAKE_BINARY_DIR}
+                     ${PROJECT_SOURCE_DIR})
+    set_tests_properties(Install.deb PROPERTIES
+                         ENVIRONMENT "${_btfkit_install_test_env};DEB=${PROJECT_SOURCE_DIR}/build/package/btfkit_${PROJECT_VERSION}_amd64.deb;VERSION=${PROJECT_VERSION};RELEASE_BTF=$<TARGET_FILE:btf>"
+                         TIMEOUT 600 COST 400)
   endif()
 endif()

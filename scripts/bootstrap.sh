@@ -25,6 +25,7 @@ packages=(
   python3-dev pybind11-dev python3-pytest  # the Python module (make python) and its tests
   chromium nginx
   clang-14 libfuzzer-14-dev  # make fuzz, make test-sanitize
+  dpkg-dev lintian man-db  # make package (dpkg-shlibdeps), its test (lintian, man --warnings)
 )
 # The web viewer is built with node and npm; any node ≥ 18 will do (Debian's, or one installed
 # from elsewhere, whose package may not be called nodejs).

@@ -8,10 +8,13 @@
 #             (find_package) and with pkg-config, both run, their output checked and compared
 #   python    `cmake --install --component python`: only the module and the libraries it loads,
 #             the module imported from the prefix
+#   deb       the Debian package of `make package` (DEB, version VERSION): its fields and files,
+#             lintian, and btf, the module and examples/cpp run from a copy unpacked by dpkg-deb
 #
-# Usage: install_consumer.sh consumer|python BUILD_DIR SOURCE_DIR
+# Usage: install_consumer.sh consumer|python|deb BUILD_DIR SOURCE_DIR
 # Environment (CTest sets it): CMAKE, CXX, NINJA, PKG_CONFIG, LIBDIR, INCLUDEDIR, BINDIR; for
-# python also PYTHON and PYTHON_DIR (the module's folder relative to the prefix).
+# python also PYTHON and PYTHON_DIR (the module's folder relative to the prefix); for deb DEB,
+# VERSION, RELEASE_BTF (this build's btf) and PYTHON.
 # Nothing is written outside the temporary folder but CMake's install_manifest*.txt in BUILD_DIR.
 set -euo pipefail
 
@@ -156,8 +159,147 @@ EOF
         fail "import from the prefix failed"
 }
 
+# The Debian package that `make package` built ($DEB): its control fields and files, lintian, and
+# the command, the Python module and a C++ consumer run from a copy unpacked into a temporary root
+# (dpkg-deb -x: no chroot, nothing installed on this machine).
+install_deb() {
+    [[ -f $DEB ]] || fail "$DEB is missing: \`make package\` builds it (\`make test\` does)"
+    local field
+    for field in Package:btfkit "Version:$VERSION" Architecture:amd64 Section:science; do
+        [[ $(dpkg-deb -f "$DEB" "${field%%:*}") == "${field#*:}" ]] ||
+            fail "control field ${field%%:*} is '$(dpkg-deb -f "$DEB" "${field%%:*}")', not '${field#*:}'"
+    done
+    # Depends as dpkg-shlibdeps computed it from the programs' shared libraries (versioned
+    # entries for libc and the C++ library), and Python for the module.
+    local depends
+    depends=$(dpkg-deb -f "$DEB" Depends)
+    echo "Depends: $depends"
+    local need
+    for need in 'libc6 (>= ' 'libstdc++6 (>= ' 'libopenimageio' 'libhdf5' 'libopenblas' \
+        'python3 (>= ' 'python3-numpy'; do
+        grep -qF "$need" <<<"$depends" || fail "Depends names no '$need'"
+    done
+    # docs/licences.md names every package the binary package depends on.
+    local package
+    for package in $(tr ',' '\n' <<<"$depends" | sed 's/[(|].*//' | tr -d ' ' | sort -u); do
+        grep -q "^| $package |" "$source/docs/licences.md" ||
+            fail "docs/licences.md does not list $package (scripts/licences.py remakes it)"
+    done
+
+    # The files: every one owned by root, and what each part needs.
+    dpkg-deb -c "$DEB" >"$work/contents.txt"
+    ! awk '$2 != "root/root"' "$work/contents.txt" | grep . || fail "files not owned by root (above)"
+    local lib
+    lib=usr/lib/$(dpkg-architecture -qDEB_HOST_MULTIARCH)
+    local file
+    for file in usr/bin/btf usr/share/man/man1/btf.1.gz usr/share/btfkit/web/index.html \
+        usr/share/btfkit/web/viewer.js usr/share/doc/btfkit/copyright \
+        usr/share/doc/btfkit/changelog.gz "$lib/btfkit/libbtfkit_images.so" "$lib/libbtfkit.a" \
+        "$lib/cmake/btfkit/btfkitConfig.cmake" "$lib/pkgconfig/btfkit.pc" usr/include/btf/btf.h \
+        usr/lib/python3/dist-packages/btfkit/__init__.py; do
+        grep -q " \./$file\$" "$work/contents.txt" || fail "not in the package: /$file"
+    done
+    ! grep -E '\.map$' "$work/contents.txt" || fail "source maps in the package (above)"
+
+    # lintian, Debian's package checker: no errors (its other findings are printed).
+    lintian --fail-on error --tag-display-limit 0 "$DEB" >"$work/lintian.txt" 2>&1 || {
+        cat "$work/lintian.txt" >&2
+        fail "lintian reports errors (above)"
+    }
+    echo "lintian: no errors; $(grep -c '' "$work/lintian.txt") lines:"
+    sed 's/^/  /' "$work/lintian.txt"
+
+    local root=$work/root
+    quiet dpkg-deb -x "$DEB" "$root"
+    local btf=$root/usr/bin/btf
+    # The version line (version and commit) is this checkout's build's.
+    local version
+    version=$("$btf" --version) || fail "the packaged btf --version failed"
+    [[ $version == "$("$RELEASE_BTF" --version)" && $version == "btfkit $VERSION"* ]] ||
+        fail "the packaged btf says '$version'; this build says '$("$RELEASE_BTF" --version)'"
+    echo "btf --version: $version"
+    # Pictures through the packaged image module.
+    grep -q "^images .*through $root/$lib/btfkit/" <<<"$("$btf" formats)" ||
+        fail "the packaged btf does not load the packaged image module"
+    # A package made by the packaged command; `btf bundle` takes the packaged viewer.
+    quiet "$btf" -q synth --preset woven_fabric --size 8 -o "$work/m.h5"
+    quiet "$btf" -q compress "$work/m.h5" -o "$work/m.btfpkg" --codec fmf --components 2
+    quiet "$btf" -q bundle "$work/m.btfpkg" -o "$work/site"
+    cmp -s "$work/site/viewer.js" "$root/usr/share/btfkit/web/viewer.js" ||
+        fail "btf bundle did not copy the packaged viewer"
+    # Packages go between builds for different processors (this build is -march=native, the
+    # package's x86-64): each codec's package from one opens and evaluates in the other.
+    local codec options writer reader codecs=0
+    while read -r codec options; do
+        for writer in "$btf" "$RELEASE_BTF"; do
+            reader=$RELEASE_BTF
+            [[ $writer == "$RELEASE_BTF" ]] && reader=$btf
+            # shellcheck disable=SC2086  # the options are words
+            quiet "$writer" -q compress "$work/m.h5" -o "$work/x.btfpkg" --codec "$codec" \
+                $options --no-error
+            quiet "$reader" eval "$work/x.btfpkg" --uv 0.3,0.6 --light 30,40 --view 20,200
+        done
+        codecs=$((codecs + 1))
+    done < <("$btf" codecs | awk '/^[a-z]/ { if (name) print name, opts; name = $1; opts = "" }
+                                  /^ +components=/ { opts = "--components 2" }
+                                  END { print name, opts }')
+    ((codecs >= 5)) || fail "btf codecs lists $codecs codecs: the list was not read"
+    echo "packages of each of the $codecs codecs open in both builds"
+
+    # The Python module, from the packaged folder only; the package's writer is its version.
+    cat >"$work/import.py" <<'PY'
+import json, struct, sys
+import btfkit
+root, version, package = sys.argv[1:]
+assert btfkit.__file__.startswith(root + "/usr/lib/python3/dist-packages/"), btfkit.__file__
+assert btfkit.__version__ == version, btfkit.__version__
+assert btfkit._btfkit._image_module().startswith(root + "/"), btfkit._btfkit._image_module()
+data = open(package, "rb").read()
+header = json.loads(data[24:24 + struct.unpack_from("<I", data, 12)[0]])
+assert header["writer"] == "btfkit " + btfkit.__version__, header["writer"]
+rgb = btfkit.open_material(package).eval([[0.3, 0.6]], [[0.3, 0.2, 0.93]], [[-0.2, 0.1, 0.97]])
+assert rgb.shape == (1, 3) and rgb.min() > 0, rgb
+print("python: btfkit", btfkit.__version__, "from", btfkit.__file__)
+PY
+    (cd "$work" && PYTHONPATH=$root/usr/lib/python3/dist-packages "$PYTHON" -s import.py "$root" \
+        "$VERSION" "$work/m.btfpkg") || fail "the packaged Python module failed"
+
+    # btf(1): man formats it without a warning, and it describes every command of `btf --help`.
+    local page=$root/usr/share/man/man1/btf.1.gz warnings
+    warnings=$(MANWIDTH=100 man --warnings -l "$page" 2>&1 >"$work/man.txt") ||
+        fail "man could not format btf(1): $warnings"
+    [[ -z $warnings ]] || fail "man warns about btf(1): $warnings"
+    local command count=0
+    for command in $("$btf" --help | awk '/^Subcommands:/ { on = 1; next } on && NF { print $1 }'); do
+        grep -q "^   btf $command\b" "$work/man.txt" || fail "btf(1) does not describe 'btf $command'"
+        count=$((count + 1))
+    done
+    ((count >= 19)) || fail "btf --help lists $count commands: the list was not read"
+    echo "btf(1): $count commands, no warnings from man"
+
+    # A C++ program through find_package(btfkit) and through pkg-config, from the packaged files.
+    quiet "$CMAKE" -S "$source/examples/cpp" -B "$work/cmake-build" -G Ninja \
+        -DCMAKE_MAKE_PROGRAM="$NINJA" -DCMAKE_CXX_COMPILER="$CXX" -DCMAKE_PREFIX_PATH="$root/usr" \
+        -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF
+    grep -qx "btfkit_DIR:PATH=$root/$lib/cmake/btfkit" "$work/cmake-build/CMakeCache.txt" ||
+        fail "find_package(btfkit) found another btfkit"
+    quiet "$CMAKE" --build "$work/cmake-build"
+    mkdir "$work/out"
+    "$work/cmake-build/btfkit_example" "$work/out" >"$work/example.txt" || fail "the example failed"
+    check_example_output "$work/example.txt"
+    export PKG_CONFIG_PATH=$root/$lib/pkgconfig
+    [[ $("$PKG_CONFIG" --modversion btfkit) == "$VERSION" ]] || fail "btfkit.pc's version is not $VERSION"
+    local cflags libs
+    cflags=$("$PKG_CONFIG" --cflags btfkit) || fail "pkg-config --cflags btfkit failed"
+    libs=$("$PKG_CONFIG" --libs btfkit) || fail "pkg-config --libs btfkit failed"
+    # shellcheck disable=SC2086  # the flags are words
+    quiet "$CXX" -std=c++20 "$source/examples/cpp/main.cpp" $cflags $libs -o "$work/pc_example"
+    echo "consumer: examples/cpp built against the package with find_package(btfkit) and pkg-config"
+}
+
 case $mode in
     consumer) install_consumer ;;
     python) install_python ;;
-    *) fail "unknown mode '$mode' (consumer or python)" ;;
+    deb) install_deb ;;
+    *) fail "unknown mode '$mode' (consumer, python or deb)" ;;
 esac

@@ -15,8 +15,8 @@ malformed arguments raise ValueError naming the argument. See docs/python.md.
 import json as _json
 import os as _os
 
-from ._btfkit import (Error, Material, Source, codecs, open, open_material, open_materials,
-                      presets, synth)
+from ._btfkit import (Error, Material, Source, __version__, codecs, open, open_material,
+                      open_materials, presets, synth)
 from ._btfkit import _compress, _decompress, _open_input, _quality, _render, _RenderOverrides
 
 __all__ = ["Error", "Material", "Source", "codecs", "compress", "decompress", "images", "open",

@@ -11,6 +11,9 @@ _Path = Union[str, bytes, PathLike[str]]
 _Array = npt.ArrayLike
 _Progress = Optional[Callable[[str, int, int], None]]
 
+__version__: str
+"""btfkit's version, "MAJOR.MINOR.PATCH" (the same as `btf --version` and the packages' writer)."""
+
 class Error(Exception):
     """A btfkit error: the same one-line message as the btf command prints."""
 

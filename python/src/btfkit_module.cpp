@@ -29,6 +29,7 @@
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
 #include "btf/util/parallel.h"
+#include "btf/version.h"
 
 namespace py = pybind11;
 
@@ -239,6 +240,7 @@ void interruptible(const py::object& callback, const std::function<void(btf::Pro
 
 PYBIND11_MODULE(_btfkit, m) {
     m.doc() = "btfkit's native module; import btfkit instead.";
+    m.attr("__version__") = btf::version();
 #ifdef BTFKIT_PYTHON_TO_IMAGES
     // Installed (cmake --install --component python), the image module lies at this path
     // relative to this file, whatever the prefix.

@@ -1,5 +1,8 @@
 # SPDX-License-Identifier: MIT
+import json
 import math
+import re
+import struct
 
 import numpy as np
 import pytest
@@ -48,6 +51,16 @@ def test_compress_refuses_bad_parameters_and_writes_nothing(source, tmp_path):
     with pytest.raises(bk.Error, match="components"):
         bk.compress(source, out, codec="fmf", components=-1)
     assert not out.exists()
+
+
+def test_version_is_the_packages_writer(source, tmp_path):
+    assert re.fullmatch(r"\d+\.\d+\.\d+", bk.__version__), bk.__version__
+    out = tmp_path / "m.btfpkg"
+    bk.compress(source, out, codec="fmf", components=2)
+    data = out.read_bytes()
+    assert data[:8] == b"\x89BTFPKG\n"
+    header = json.loads(data[24:24 + struct.unpack_from("<I", data, 12)[0]])
+    assert header["writer"] == "btfkit " + bk.__version__
 
 
 def test_codecs_list_their_parameters():

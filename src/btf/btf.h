@@ -15,6 +15,9 @@
 ///                                                   utia::write
 ///     render::load_scene ─► render::render ─► render::write_render
 
+// The version (btf::version()).
+#include "btf/version.h"
+
 // Errors (btf::Error, btf::Cancelled) and progress reports of long operations.
 #include "btf/util/error.h"
 #include "btf/util/progress.h"

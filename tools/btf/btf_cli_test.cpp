@@ -26,6 +26,7 @@
 #include "btf/testing/cli.h"
 #include "btf/testing/support.h"
 #include "btf/util/thin_products.h"
+#include "btf/version.h"
 
 namespace btf {
 namespace {
@@ -56,6 +57,23 @@ TEST_F(BtfCli, HelpListsEverySubcommand) {
                           "render", "report",  "serve", "bundle", "codecs",   "formats"};
     for (const char* sub : subs) EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
     for (const char* sub : subs) EXPECT_EQ(run(std::string(sub) + " --help").code, 0) << sub;
+}
+
+// The version declared in CMakeLists.txt, with the commit of the checkout it was built from (CI
+// and `make test` build from one), in `btf --version` and in the header of every package.
+TEST_F(BtfCli, VersionAndPackageWriterAreTheProjectVersion) {
+    const CliResult r = run("--version");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_THAT(r.output, ::testing::MatchesRegex("btfkit " BTF_PROJECT_VERSION
+                                                  "( \\(git [0-9a-f]{12}(-modified)?\\))?\n"));
+    EXPECT_EQ(btf::version(), std::string(BTF_PROJECT_VERSION));
+
+    const std::string source = path("writer.h5"), package = path("writer.btfpkg");
+    ASSERT_EQ(run("-q synth --preset woven_fabric --size 8 -o " + source).code, 0);
+    const CliResult c =
+        run("-q compress " + source + " -o " + package + " --codec fmf --components 2 --no-error");
+    ASSERT_EQ(c.code, 0) << c.output;
+    EXPECT_EQ(btf::read_package(package).header["writer"], "btfkit " BTF_PROJECT_VERSION);
 }
 
 TEST_F(BtfCli, VerboseNamesTheOpenBlasKernelAndTheThreads) {

@@ -21,6 +21,7 @@
 #include "btf/stream/catalog.h"
 #include "btf/synth/synth.h"
 #include "btf/util/error.h"
+#include "btf/version.h"
 #include "mpi_world.h"
 
 namespace btf::cli {
@@ -146,6 +147,21 @@ Uv parse_uv(const std::string& text, const std::string& option) {
 
 std::string format_ratio(double ratio) {
     return ratio >= 10 ? fmt::format("{:.0f}:1", ratio) : fmt::format("{:.1f}:1", ratio);
+}
+
+std::filesystem::path default_web_dir() {
+    std::error_code ec;
+    const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) {
+        const std::filesystem::path installed = exe.parent_path() / BTF_BIN_TO_WEB;
+        if (std::filesystem::is_regular_file(installed / "index.html", ec)) return installed;
+    }
+    return BTF_WEB_DIR;
+}
+
+std::string version_line() {
+    const std::string commit = build_commit();
+    return commit.empty() ? writer_name() : fmt::format("{} (git {})", writer_name(), commit);
 }
 
 std::string human_bytes(double bytes) {

@@ -20,14 +20,21 @@
 
 namespace btf::cli {
 
-/// What `btf --version` prints and reports name as their writer.
-constexpr const char* kVersion = "btfkit 0.1.0";
+/// The git commit `btf` was built from, "" outside a checkout (generated: cmake/git_commit.cmake).
+const char* build_commit();
+/// What `btf --version` prints and reports name as their writer: "btfkit 0.2.0 (git 1a2b3c4d5e6f)",
+/// or "btfkit 0.2.0" when built outside a git checkout.
+std::string version_line();
 
 struct GlobalOptions {
     int threads = 0;           // 0 = all cores
     bool quiet = false;        // no progress output
     std::string command_line;  // as typed (shell-quoted where needed), for reports
 };
+
+/// The web viewer `btf serve` and `btf bundle` use without --web: the installed one beside this
+/// command (PREFIX/share/btfkit/web for PREFIX/bin/btf) when it exists, else this build's output.
+std::filesystem::path default_web_dir();
 
 /// A Progress that draws a bar on a terminal (stderr) and prints plain lines otherwise.
 Progress make_progress(const GlobalOptions& options);
@@ -171,5 +178,7 @@ Command register_bundle(CLI::App& app, GlobalOptions& global);
 Command register_image_diff(CLI::App& app, GlobalOptions& global);
 Command register_bsvtf(CLI::App& app, GlobalOptions& global);
 Command register_bsvtf_sim(CLI::App& app, GlobalOptions& global);
+/// Registered last: btf(1) describes the commands registered before it.
+Command register_manpage(CLI::App& app, GlobalOptions& global);
 
 }  // namespace btf::cli

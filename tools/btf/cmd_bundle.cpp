@@ -31,8 +31,8 @@ Command register_bundle(CLI::App& app, GlobalOptions& global) {
     cmd->add_option("-o,--output", args->output, "site folder to create (new or empty)")
         ->required();
     cmd->add_option("--web", args->web,
-                    std::string("the web viewer's folder (default: ") + BTF_WEB_DIR +
-                        ", the viewer's build output)");
+                    "the web viewer's folder (default: the installed viewer, "
+                    "PREFIX/share/btfkit/web beside PREFIX/bin/btf, else the build's own)");
 
     return {cmd, [args, &global] {
                 fs::path web_root;
@@ -41,8 +41,8 @@ Command register_bundle(CLI::App& app, GlobalOptions& global) {
                     if (!fs::is_directory(args->web, ec))
                         fail("{}: --web: no such folder", args->web);
                     web_root = args->web;
-                } else if (std::error_code ec; fs::is_directory(BTF_WEB_DIR, ec)) {
-                    web_root = BTF_WEB_DIR;
+                } else if (std::error_code ec; fs::is_directory(default_web_dir(), ec)) {
+                    web_root = default_web_dir();
                 }
                 const stream::Catalog catalog =
                     stream::Catalog::build(servable_inputs(args->inputs, global));

@@ -109,7 +109,7 @@ Command register_report(CLI::App& app, GlobalOptions& global) {
                 options.keep_packages = !args->no_packages;
                 options.zstd_level = args->zstd;
                 options.reference_name = args->input;
-                options.generator = kVersion;
+                options.generator = version_line();
                 options.command_line = global.command_line;
 
                 if (!args->scene.empty()) {

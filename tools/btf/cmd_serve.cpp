@@ -42,8 +42,8 @@ Command register_serve(CLI::App& app, GlobalOptions& global) {
         ->check(CLI::Range(0, 65535));
     cmd->add_option("--bind", args->bind, "address to listen on (0.0.0.0: every interface)");
     cmd->add_option("--web", args->web,
-                    std::string("the web viewer's folder (default: ") + BTF_WEB_DIR +
-                        ", the viewer's build output)");
+                    "the web viewer's folder (default: the installed viewer, "
+                    "PREFIX/share/btfkit/web beside PREFIX/bin/btf, else the build's own)");
 
     return {cmd, [args, &global] {
                 stream::ServerOptions options;
@@ -56,8 +56,8 @@ Command register_serve(CLI::App& app, GlobalOptions& global) {
                         fail("{}: --web: no such folder", args->web);
                     options.web_root = args->web;
                 } else {
-                    // The viewer's build output; until it is built, `/` shows the built-in page.
-                    options.web_root = BTF_WEB_DIR;
+                    // Until the viewer is built, `/` shows the built-in page.
+                    options.web_root = default_web_dir();
                 }
                 std::vector<fs::path> inputs = servable_inputs(args->inputs, global);
                 if (inputs.empty()) inputs.push_back(demo_package(global));

@@ -108,7 +108,7 @@ int run(int argc, char** argv) {
         "to pixels"};
     app.require_subcommand(1);
     app.option_defaults()->always_capture_default();
-    app.set_version_flag("--version", kVersion);
+    app.set_version_flag("--version", version_line());
     GlobalOptions global;
     global.command_line = shell_command_line(argc, argv);
     app.add_option("--threads", global.threads, "worker threads (default: all cores)")
@@ -143,7 +143,7 @@ int run(int argc, char** argv) {
         register_bsvtf_sim(app, global),     register_serve(app, global),
         register_bundle(app, global),        register_codecs(app, global),
         register_compress_many(app, global), register_formats(app, global),
-        register_bench(app, global),
+        register_bench(app, global),         register_manpage(app, global),
     };
 
     try {

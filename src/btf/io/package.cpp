@@ -151,6 +151,7 @@ std::vector<uint8_t> prepare(Package& package, const PackageWriteOptions& option
     package.header["format"] = "btfpkg";
     package.header["version"] = kPackageVersion;
     package.header["sections"] = std::move(table);
+    package.header["writer"] = options.writer;
     package.declared_sections = static_cast<int>(package.sections.size());
 
     std::string text;

@@ -27,6 +27,7 @@
 
 #include "btf/util/error.h"
 #include "btf/util/progress.h"
+#include "btf/version.h"
 
 namespace btf {
 
@@ -74,6 +75,8 @@ struct PackageWriteOptions {
     /// zstd level for every section (1..22); 0 stores sections raw. A section is also stored raw
     /// when zstd does not make it smaller.
     int zstd_level = 9;
+    /// The header's "writer" field: the program that wrote the file (btfkit and its version).
+    std::string writer = writer_name();
 };
 
 /// Serializes `package` (filling in each section's storage fields and file_bytes).

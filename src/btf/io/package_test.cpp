@@ -173,24 +173,26 @@ TEST(Package, GoldenBytes) {
     p.sections.push_back(section("data", {1, 2, 3, 4}));
     const std::string text =
         R"({"codec":"test","format":"btfpkg","sections":[{"coding":"raw","name":"data",)"
-        R"("offset":0,"raw_size":4,"size":4,"xxh64":"542620e3a2a92ed1"}],"version":1})";
-    ASSERT_EQ(text.size(), 150u);
+        R"("offset":0,"raw_size":4,"size":4,"xxh64":"542620e3a2a92ed1"}],"version":1,)"
+        R"("writer":"btfkit 0.2.0"})";
+    ASSERT_EQ(text.size(), 174u);
     Bytes expected = {
         0x89, 'B',  'T',  'F',  'P',  'K',  'G',  '\n',  // magic
         0x01, 0x00, 0x00, 0x00,                          // version 1
-        0x96, 0x00, 0x00, 0x00,                          // header length 150
-        0xa9, 0x22, 0xc9, 0x6f, 0x46, 0xaf, 0xd7, 0xd9,  // XXH64 of the header: d9d7af466fc922a9
+        0xae, 0x00, 0x00, 0x00,                          // header length 174
+        0x31, 0x2e, 0x08, 0xe4, 0xfb, 0x68, 0x73, 0xc3,  // XXH64 of the header: c37368fbe4082e31
     };
     expected.insert(expected.end(), text.begin(), text.end());
     expected.insert(expected.end(), {1, 2, 3, 4});
 
-    EXPECT_EQ(encode_package(p, {.zstd_level = 0}), expected);
+    // The writer as btfkit 0.2.0 names itself (the default is this build's version).
+    EXPECT_EQ(encode_package(p, {.zstd_level = 0, .writer = "btfkit 0.2.0"}), expected);
     const Package q = decode_package(expected, "golden.btfpkg");
     EXPECT_EQ(q.codec(), "test");
     ASSERT_EQ(q.sections.size(), 1u);
     EXPECT_EQ(q.at("data").data, Bytes({1, 2, 3, 4}));
     EXPECT_EQ(q.at("data").checksum, 0x542620e3a2a92ed1u);
-    EXPECT_EQ(q.file_bytes, 178u);
+    EXPECT_EQ(q.file_bytes, 202u);
 }
 
 /// Every prefix of a package: on a section boundary it decodes to the sections before that
