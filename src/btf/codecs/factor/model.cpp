@@ -301,20 +301,28 @@ void append(std::vector<uint8_t>& out, const T* values, size_t count) {
     std::memcpy(out.data() + at, values, count * sizeof(T));
 }
 
-void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
-    const AngularInterpolator::Tables t = AngularInterpolator(set).tables();
+/// One direction set's tables part by part, in the order section "tables" stores them:
+/// part(values, count, floats) for each, until one returns false.
+template <typename Part>
+bool table_parts(const AngularInterpolator::Tables& t, Part&& part) {
     const int32_t head[6] = {t.grid_resolution,
                              t.num_directions,
                              t.num_vertices,
                              t.lifted_horizon ? 1 : 0,
                              static_cast<int32_t>(t.triangles.size() / 3),
                              static_cast<int32_t>(t.cell_triangles.size())};
-    append(out, head, 6);
-    append(out, t.vertices.data(), t.vertices.size());
-    append(out, t.triangles.data(), t.triangles.size());
-    append(out, t.inverse.data(), t.inverse.size());
-    append(out, t.cell_offsets.data(), t.cell_offsets.size());
-    append(out, t.cell_triangles.data(), t.cell_triangles.size());
+    return part(head, size_t(6), false) && part(t.vertices.data(), t.vertices.size(), true) &&
+           part(t.triangles.data(), t.triangles.size(), false) &&
+           part(t.inverse.data(), t.inverse.size(), true) &&
+           part(t.cell_offsets.data(), t.cell_offsets.size(), false) &&
+           part(t.cell_triangles.data(), t.cell_triangles.size(), false);
+}
+
+void append_tables(std::vector<uint8_t>& out, const DirectionSet& set) {
+    table_parts(AngularInterpolator(set).tables(), [&](const auto* values, size_t count, bool) {
+        append(out, values, count);
+        return true;
+    });
 }
 
 /// Whether `stored` holds the tables append_tables() writes for `sets`, one after the other: the
@@ -325,37 +333,23 @@ bool tables_match(std::span<const uint8_t> stored,
                   std::initializer_list<const DirectionSet*> sets) {
     size_t at = 0;
     // The next `count` words of `stored` against `expected`: equal bits, or floats close enough.
-    const auto take = [&](const void* expected, size_t count, bool floats) {
+    const auto take = [&](const auto* expected, size_t count, bool floats) {
+        static_assert(sizeof(*expected) == 4);
         if (stored.size() - at < count * 4) return false;
         for (size_t i = 0; i < count; ++i, at += 4) {
             if (!floats) {
-                if (std::memcmp(stored.data() + at, static_cast<const char*>(expected) + i * 4, 4))
-                    return false;
+                if (std::memcmp(stored.data() + at, &expected[i], 4)) return false;
                 continue;
             }
-            float a, b;
+            float a;
             std::memcpy(&a, stored.data() + at, 4);
-            std::memcpy(&b, static_cast<const char*>(expected) + i * 4, 4);
-            if (!(std::abs(double(a) - double(b)) <= 1e-5 * std::max(1.0, std::abs(double(b)))))
-                return false;
+            const double b = double(expected[i]);
+            if (!(std::abs(double(a) - b) <= 1e-5 * std::max(1.0, std::abs(b)))) return false;
         }
         return true;
     };
-    for (const DirectionSet* set : sets) {
-        const AngularInterpolator::Tables t = AngularInterpolator(*set).tables();
-        const int32_t head[6] = {t.grid_resolution,
-                                 t.num_directions,
-                                 t.num_vertices,
-                                 t.lifted_horizon ? 1 : 0,
-                                 static_cast<int32_t>(t.triangles.size() / 3),
-                                 static_cast<int32_t>(t.cell_triangles.size())};
-        if (!take(head, 6, false) || !take(t.vertices.data(), t.vertices.size(), true) ||
-            !take(t.triangles.data(), t.triangles.size(), false) ||
-            !take(t.inverse.data(), t.inverse.size(), true) ||
-            !take(t.cell_offsets.data(), t.cell_offsets.size(), false) ||
-            !take(t.cell_triangles.data(), t.cell_triangles.size(), false))
-            return false;
-    }
+    for (const DirectionSet* set : sets)
+        if (!table_parts(AngularInterpolator(*set).tables(), take)) return false;
     return at == stored.size();
 }
 
