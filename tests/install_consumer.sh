@@ -227,6 +227,40 @@ install_deb() {
     quiet "$btf" -q bundle "$work/m.btfpkg" -o "$work/site"
     cmp -s "$work/site/viewer.js" "$root/usr/share/btfkit/web/viewer.js" ||
         fail "btf bundle did not copy the packaged viewer"
+    # The packaged evaluators run clones for this processor's x86-64 level (src/btf/util/clones.h):
+    # they must give the native build's values. Deterministic queries to within float rounding,
+    # and the sum of 65536 random stochastic ones (each drawn from the same numbers) to within 1e-5.
+    local level
+    level=$("$btf" --verbose codecs 2>&1 >/dev/null | grep -o 'evaluators: [^;]*') ||
+        fail "btf --verbose names no evaluators' code"
+    [[ $level =~ ^evaluators:\ x86-64(-v3|-v4)?\ clones$ ]] ||
+        fail "the packaged btf says '$level': it has no clones of the evaluators"
+    echo "packaged btf: $level"
+    awk 'BEGIN { srand(7); for (i = 0; i < 64; i++)
+                   printf "%.4f,%.4f %.2f,%.2f %.2f,%.2f\n", rand(), rand(), 85 * rand(),
+                          360 * rand(), 85 * rand(), 360 * rand() }' >"$work/queries.txt"
+    same_values() {
+        local codec=$1 package=$2 b p
+        "$btf" eval "$package" --queries "$work/queries.txt" >"$work/package.txt" ||
+            fail "the packaged btf could not evaluate $codec's package"
+        "$RELEASE_BTF" eval "$package" --queries "$work/queries.txt" >"$work/native.txt" ||
+            fail "this build's btf could not evaluate $codec's package"
+        paste -d ' ' "$work/package.txt" "$work/native.txt" | awk -v codec="$codec" '
+            function abs(x) { return x < 0 ? -x : x }
+            { for (i = 1; i <= 3; i++) if (abs($i - $(i + 3)) > 1e-5 * (1 + abs($(i + 3)))) {
+                  printf "%s: query %d: the package gives %s, this build %s\n", codec, NR, $i,
+                         $(i + 3) > "/dev/stderr"; exit 1 } }
+            END { if (NR != 64) { print codec ": " NR " values, not 64" > "/dev/stderr"; exit 1 } }' ||
+            fail "the packaged btf evaluates $codec's package differently"
+        checksum() {
+            "$1" -q bench eval "$package" --queries 65536 --repeat 1 --json |
+                python3 -c 'import json, sys; print(json.load(sys.stdin)["checksum"])'
+        }
+        b=$(checksum "$btf") && p=$(checksum "$RELEASE_BTF") ||
+            fail "btf bench eval failed on $codec's package"
+        awk -v a="$b" -v b="$p" 'BEGIN { d = a - b; exit !(a > 0 && (d < 0 ? -d : d) <= 1e-5 * b) }' ||
+            fail "$codec: the packaged btf's random stochastic values sum to $b, this build's to $p"
+    }
     # Packages go between builds for different processors (this build is -march=native, the
     # package's x86-64): each codec's package from one opens and evaluates in the other.
     local codec options writer reader codecs=0
@@ -239,12 +273,13 @@ install_deb() {
                 $options --no-error
             quiet "$reader" eval "$work/x.btfpkg" --uv 0.3,0.6 --light 30,40 --view 20,200
         done
+        same_values "$codec" "$work/x.btfpkg"
         codecs=$((codecs + 1))
     done < <("$btf" codecs | awk '/^[a-z]/ { if (name) print name, opts; name = $1; opts = "" }
                                   /^ +components=/ { opts = "--components 2" }
                                   END { print name, opts }')
     ((codecs >= 5)) || fail "btf codecs lists $codecs codecs: the list was not read"
-    echo "packages of each of the $codecs codecs open in both builds"
+    echo "packages of each of the $codecs codecs open in both builds and evaluate to the same values"
 
     # The Python module, from the packaged folder only; the package's writer is its version.
     cat >"$work/import.py" <<'PY'

@@ -25,6 +25,7 @@
 #include "btf/io/package.h"
 #include "btf/testing/cli.h"
 #include "btf/testing/support.h"
+#include "btf/util/clones.h"
 #include "btf/util/thin_products.h"
 #include "btf/version.h"
 
@@ -79,11 +80,12 @@ TEST_F(BtfCli, VersionAndPackageWriterAreTheProjectVersion) {
 TEST_F(BtfCli, VerboseNamesTheOpenBlasKernelAndTheThreads) {
     const CliResult r = run("--verbose --threads 1 codecs");
     EXPECT_EQ(r.code, 0) << r.output;
-    EXPECT_NE(r.output.find(btf::thin::kernel() == btf::thin::Kernel::kOwn
-                                ? "btf: 1 worker threads; factorization products: btfkit's "
-                                  "AVX-512 kernels; OpenBLAS "
-                                : "btf: 1 worker threads; factorization products: OpenBLAS; "
-                                  "OpenBLAS "),
+    EXPECT_NE(r.output.find(fmt::format("btf: 1 worker threads; evaluators: {}; factorization "
+                                        "products: {}; OpenBLAS ",
+                                        btf::clone_level(),
+                                        btf::thin::kernel() == btf::thin::Kernel::kOwn
+                                            ? "btfkit's AVX-512 kernels"
+                                            : "OpenBLAS")),
               std::string::npos)
         << r.output;
     EXPECT_NE(r.output.find(", kernel "), std::string::npos) << r.output;

@@ -14,6 +14,7 @@
 
 #include "btf/util/atomic_file.h"
 #include "btf/util/blas.h"
+#include "btf/util/clones.h"
 #include "btf/util/error.h"
 #include "btf/util/limits.h"
 #include "btf/util/parallel.h"
@@ -160,8 +161,9 @@ int run(int argc, char** argv) {
         btf::set_limits(limits);
         btf::ThreadLimit limit(global.threads);
         if (verbose)
-            std::fprintf(stderr, "btf: %d worker threads; factorization products: %s; %s\n",
-                         btf::worker_threads(),
+            std::fprintf(stderr,
+                         "btf: %d worker threads; evaluators: %s; factorization products: %s; %s\n",
+                         btf::worker_threads(), btf::clone_level(),
                          btf::thin::kernel() == btf::thin::Kernel::kOwn ? "btfkit's AVX-512 kernels"
                                                                         : "OpenBLAS",
                          btf::blas::description().c_str());

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "btf/core/hemisphere.h"
+#include "btf/util/clones.h"
 #include "btf/util/error.h"
 
 namespace btf {
@@ -366,7 +367,7 @@ inline AngularWeights AngularInterpolator::finish(const Triangle& t, const doubl
     return out;
 }
 
-AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
+BTF_CLONES AngularWeights AngularInterpolator::weights(const Vec3& direction) const {
     const Vec3 d = prepare(direction);
     const SquarePoint p = octahedral_square(d.x, d.y, d.z);
     const int g = m_lookup.resolution;
@@ -498,20 +499,20 @@ void AngularInterpolator::weights_lanes(const AngularInterpolator* const* in,
     }
 }
 
-void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
-                                   std::array<AngularWeights, 4>& out) const {
+BTF_CLONES void AngularInterpolator::weights4(const std::array<const Vec3*, 4>& directions,
+                                              std::array<AngularWeights, 4>& out) const {
     const AngularInterpolator* in[1] = {this};
     const Vec3* const* d[1] = {directions.data()};
     AngularWeights* o[1] = {out.data()};
     weights_lanes<1>(in, d, o);
 }
 
-void AngularInterpolator::weights4(const AngularInterpolator& a,
-                                   const std::array<const Vec3*, 4>& a_directions,
-                                   std::array<AngularWeights, 4>& a_out,
-                                   const AngularInterpolator& b,
-                                   const std::array<const Vec3*, 4>& b_directions,
-                                   std::array<AngularWeights, 4>& b_out) {
+BTF_CLONES void AngularInterpolator::weights4(const AngularInterpolator& a,
+                                              const std::array<const Vec3*, 4>& a_directions,
+                                              std::array<AngularWeights, 4>& a_out,
+                                              const AngularInterpolator& b,
+                                              const std::array<const Vec3*, 4>& b_directions,
+                                              std::array<AngularWeights, 4>& b_out) {
     const AngularInterpolator* in[2] = {&a, &b};
     const Vec3* const* d[2] = {a_directions.data(), b_directions.data()};
     AngularWeights* o[2] = {a_out.data(), b_out.data()};

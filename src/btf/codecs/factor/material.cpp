@@ -7,7 +7,11 @@
 // within one block, so a query costs 9 + 4 vector accumulations and one dot product of length K
 // per block and channel instead of 36 reconstructions. Component vectors are padded to a
 // multiple of 8 and processed with compiler vector extensions (8 lanes: one AVX register, or two
-// SSE registers on a baseline build).
+// SSE registers on a baseline build). In a build for the x86-64 baseline (the Debian package) the
+// out-of-line kernels below and stochastic_batch() are BTF_CLONES: the loader runs their
+// x86-64-v3 or v4 clone where the processor has AVX2 or AVX-512 (util/clones.h). Each kernel is
+// one function for every caller, so the batches still return the single calls' values bit for
+// bit.
 //
 // Blocks of a reduced spatial level (high-frequency omission) store b on a coarser grid whose
 // bilinear up-sampling defines the full-resolution texels; the bilinear interpolation of those
@@ -41,17 +45,18 @@
 #include <span>
 #include <type_traits>
 
-#if defined(__F16C__)
-#include <immintrin.h>
-#endif
-
 #include "btf/codecs/factor/model.h"
 #include "btf/core/angular_interpolator.h"
 #include "btf/core/btf_lookup.h"
 #include "btf/core/pick_lanes.h"
+#include "btf/util/clones.h"
 #include "btf/util/error.h"
 #include "btf/util/half.h"
 #include "btf/util/huge_pages.h"
+
+#if defined(__F16C__) || BTF_HAS_CLONES
+#include <immintrin.h>
+#endif
 
 namespace btf::factor {
 
@@ -78,14 +83,32 @@ inline Lanes load(const float* p) {
     std::memcpy(&v, p, sizeof v);
     return v;
 }
-// Eight IEEE half floats as floats (exact).
-inline Lanes load(const uint16_t* p) {
+#if defined(__F16C__) || BTF_HAS_CLONES
+// Eight IEEE half floats as floats with F16C (exact). In a build with clones (BTF_CLONES), for the
+// clones that have F16C: compiled for it by attribute, inlined into them (GCC 12 converts a vector
+// of _Float16 one half at a time).
 #if defined(__F16C__)
+#define BTF_F16C
+#else
+#define BTF_F16C __attribute__((target("avx,f16c")))
+#endif
+BTF_F16C inline Lanes load_f16c(const uint16_t* p) {
     const __m256 v = _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
     Lanes r;
     std::memcpy(&r, &v, sizeof r);
     return r;
+}
+#endif
+// Eight IEEE half floats as floats (exact).
+inline Lanes load(const uint16_t* p) {
+#if defined(__F16C__)
+    return load_f16c(p);
 #else
+#if BTF_HAS_CLONES
+    // In a clone for x86-64-v3 or v4 (both have F16C) the test is always true, and load_f16c()
+    // is inlined; the default clone takes the loop.
+    if (__builtin_cpu_supports("x86-64-v3")) return load_f16c(p);
+#endif
     Lanes r;
     for (int i = 0; i < kLanes; ++i) r[i] = from_half(p[i]);
     return r;
@@ -564,7 +587,8 @@ struct FactorMaterial::Impl {
     // multiplies and adds into fused ones differently, and the batch would no longer return
     // exactly the shading point's values.
     template <typename T>
-    __attribute__((noinline)) void fused_sample(int64_t texel, int64_t pair, float* out) const {
+    __attribute__((noinline)) BTF_CLONES void fused_sample(int64_t texel, int64_t pair,
+                                                           float* out) const {
         const Fused& f = fused;
         const T* a = fused_a<T>(pair);
         const T* b = fused_b<T>(texel);
@@ -627,8 +651,8 @@ struct FactorMaterial::Impl {
     // its row up-sampled from 4 coarse rows first. Out of line, so that the single-block path of
     // the batches compiles as compactly as without it.
     template <typename T>
-    __attribute__((noinline)) void general_sample(int64_t texel, int group, int64_t pair,
-                                                  float* out) const {
+    __attribute__((noinline)) BTF_CLONES void general_sample(int64_t texel, int group, int64_t pair,
+                                                             float* out) const {
         const int c = cluster[texel];
         alignas(32) float upsampled[kMaxComponents];
         for (int p = 0; p < planes; ++p)
@@ -745,8 +769,9 @@ struct FactorMaterial::Impl {
     // fused width, and mean[k] likewise. acc must hold fused.a_width floats. Out of line like
     // fused_value(), so that eval() and eval_batch() share one body and agree bit for bit.
     template <typename T>
-    __attribute__((noinline)) void fused_angular(const AngularWeights& vw, const AngularWeights& lw,
-                                                 float* acc, float* mean) const {
+    __attribute__((noinline)) BTF_CLONES void fused_angular(const AngularWeights& vw,
+                                                            const AngularWeights& lw, float* acc,
+                                                            float* mean) const {
         // Gather the ≤ 9 pairs' rows first, then sum them per vector: the accumulator stays in
         // a register instead of going through memory once per pair.
         const T* rows[9];
@@ -777,8 +802,8 @@ struct FactorMaterial::Impl {
     // Value of one query given the angular accumulation: Σ_t s_t b(t) per segment, dotted with
     // acc's segment.
     template <typename T>
-    __attribute__((noinline)) Rgb fused_value(const Uv& uv, const float* acc,
-                                              const float* mean) const {
+    __attribute__((noinline)) BTF_CLONES Rgb fused_value(const Uv& uv, const float* acc,
+                                                         const float* mean) const {
         const Fused& f = fused;
         const Bilinear q = bilinear(uv);
         const T* b0 = fused_b<T>(q.t[0]);
@@ -989,9 +1014,9 @@ struct FactorMaterial::Impl {
     // single-block path of eval() and eval_batch() compiles as compactly as without it.
     // acc: channels × max_kp floats, mean: 3.
     template <typename T>
-    __attribute__((noinline)) Rgb general_value(const Uv& uv, const AngularWeights& vw,
-                                                const AngularWeights& lw, float* acc,
-                                                float* mean) const {
+    __attribute__((noinline)) BTF_CLONES Rgb general_value(const Uv& uv, const AngularWeights& vw,
+                                                           const AngularWeights& lw, float* acc,
+                                                           float* mean) const {
         Texels t[kMaxLevels];
         all_texels(uv, t);
         int group_list[3];
@@ -1013,10 +1038,9 @@ struct FactorMaterial::Impl {
     // The same with the angular accumulations cached per block (eval_batch): block i's are at
     // cache + i · stride and cache_mean + 3 i, valid when stamp[i] == current.
     template <typename T>
-    __attribute__((noinline)) Rgb general_batch_value(const Uv& uv, const AngularWeights& vw,
-                                                      const AngularWeights& lw, float* cache,
-                                                      float* cache_mean, uint32_t* stamp,
-                                                      uint32_t current, int stride) const {
+    __attribute__((noinline)) BTF_CLONES Rgb general_batch_value(
+        const Uv& uv, const AngularWeights& vw, const AngularWeights& lw, float* cache,
+        float* cache_mean, uint32_t* stamp, uint32_t current, int stride) const {
         Texels t[kMaxLevels];
         all_texels(uv, t);
         int group_list[3];
@@ -1131,7 +1155,8 @@ struct FactorMaterial::Impl {
     // earlier. Each stage waits only on an earlier step, so the processor overlaps the long
     // lookups and the long chains of picks of several queries.
     template <typename T>
-    void stochastic_batch(std::span<const StochasticQuery> queries, std::span<Rgb> out) const {
+    BTF_CLONES void stochastic_batch(std::span<const StochasticQuery> queries,
+                                     std::span<Rgb> out) const {
         constexpr size_t kAhead = kAheadStochastic;
         static_assert(kAhead % kGroup == 0 && kAhead + kGroup <= kRing);
         Drawn ring[kRing];

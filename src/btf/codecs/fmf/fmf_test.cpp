@@ -187,6 +187,10 @@ TEST(Fmf, PrefixesDecodeWithMonotonicallyDecreasingError) {
             source,
             Params(
                 {{"components", "16"}, {"colour", colour}, {"mean", "true"}, {"quantize", "f32"}}));
+        // The source has rank ≤ 16: the last prefixes reproduce it to float rounding (RMSE
+        // ~3e-7), where another component only changes how the sums round (a build of the
+        // `package` preset measured 2.74720e-7, then 2.74776e-7 with the last section).
+        constexpr double kRounding = 1e-6;
         double previous = INFINITY;
         int components = -1;
         for (int n = 0; n <= full.declared_sections; ++n) {
@@ -195,10 +199,10 @@ TEST(Fmf, PrefixesDecodeWithMonotonicallyDecreasingError) {
             const auto material = fmf_codec().open(prefix);
             const int k = dynamic_cast<const FactorMaterial&>(*material).total_components();
             const double e = rmse(source, *material);
-            if (k > components && components >= 0) {
+            if (k > components && components >= 0 && previous > kRounding) {
                 EXPECT_LT(e, previous) << colour << " " << n;
             }
-            EXPECT_LE(e, previous);
+            EXPECT_LE(e, std::max(previous, kRounding)) << colour << " " << n;
             previous = e;
             components = k;
         }
