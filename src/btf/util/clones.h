@@ -14,8 +14,9 @@
 // Only in a build for less than x86-64-v3 (the Debian package, the `package` preset): a
 // -march=native build (`make`) compiles once, for its machine, and its code paths chosen by
 // preprocessor (__AVX2__, __F16C__) stay as they are. Inside a clone those macros keep the build's
-// values, so code that must use a clone's instructions uses GCC vector extensions (see
-// half_lanes.h) rather than #ifdef'd intrinsics.
+// values, so intrinsics a clone should use go in a helper compiled for them by attribute
+// (target("avx,f16c")), called behind __builtin_cpu_supports("x86-64-v3"), which is constant
+// within each clone (factor/material.cpp's half-float loads do this).
 #pragma once
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__ELF__) && \

@@ -98,6 +98,7 @@ BTF_F16C inline Lanes load_f16c(const uint16_t* p) {
     std::memcpy(&r, &v, sizeof r);
     return r;
 }
+#undef BTF_F16C
 #endif
 // Eight IEEE half floats as floats (exact).
 inline Lanes load(const uint16_t* p) {
